@@ -1,0 +1,71 @@
+"""The in-memory form of one take (one sentence): labelled 3-D marker trajectories in mm."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from facemotion.errors import InputError
+
+
+@dataclass
+class Recording:
+    """One take of labelled marker trajectories.
+
+    points: (frames, markers, 3) float64 in millimetres; NaN marks a missing sample.
+    filled: (frames, markers) bool, True where a sample was filled (by the recording's
+        producer or by our gap filling) rather than measured.
+    """
+
+    labels: list[str]
+    points: np.ndarray
+    rate: float
+    source: str = ""
+    filled: np.ndarray | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        self.labels = [str(label) for label in self.labels]
+        self.points = np.asarray(self.points, dtype=float)
+        if self.points.ndim != 3 or self.points.shape[2] != 3:
+            raise InputError(f"{self.source or 'recording'}: points must be (frames, markers, 3), "
+                             f"got shape {self.points.shape}")
+        if self.points.shape[1] != len(self.labels):
+            raise InputError(f"{self.source or 'recording'}: {len(self.labels)} labels but "
+                             f"{self.points.shape[1]} markers in the data")
+        if len(set(self.labels)) != len(self.labels):
+            dup = sorted({x for x in self.labels if self.labels.count(x) > 1})
+            raise InputError(f"{self.source or 'recording'}: duplicate marker labels {dup}")
+        if not np.isfinite(self.rate) or self.rate <= 0:
+            raise InputError(f"{self.source or 'recording'}: frame rate must be positive, "
+                             f"got {self.rate}")
+        if self.filled is None:
+            self.filled = np.zeros(self.points.shape[:2], dtype=bool)
+        else:
+            self.filled = np.asarray(self.filled, dtype=bool)
+            if self.filled.shape != self.points.shape[:2]:
+                raise InputError(f"{self.source or 'recording'}: fill mask shape "
+                                 f"{self.filled.shape} != {self.points.shape[:2]}")
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def n_markers(self) -> int:
+        return int(self.points.shape[1])
+
+    def index(self, label: str) -> int:
+        """Column of a marker, with an error naming the marker and the file if absent."""
+        try:
+            return self.labels.index(str(label))
+        except ValueError:
+            raise InputError(f"{self.source or 'recording'}: marker {label!r} not found "
+                             f"(have {len(self.labels)} markers: {', '.join(self.labels[:8])}"
+                             f"{', ...' if len(self.labels) > 8 else ''})") from None
+
+    def select(self, labels: list[str]) -> Recording:
+        """A new recording with only these markers, in this order."""
+        idx = [self.index(label) for label in labels]
+        return Recording(list(labels), self.points[:, idx, :].copy(), self.rate, self.source,
+                         self.filled[:, idx].copy())
