@@ -1,0 +1,22 @@
+# facemotion: how the human face moves during speech.
+# Lucero & Munhall (2008) kinematic regions and Basu & Pentland (1997) lip model.
+
+
+configfile: workflow.source_path("config/config.yaml")
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/simulate.smk"
+include: "workflow/rules/data.smk"
+include: "workflow/rules/qr.smk"
+include: "workflow/rules/fit.smk"
+include: "workflow/rules/eval.smk"
+include: "workflow/rules/animate.smk"
+include: "workflow/rules/tables.smk"
+include: "workflow/rules/lips.smk"
+
+
+rule all:
+    default_target: True
+    input:
+        all_outputs(),

@@ -1,0 +1,19 @@
+"""Find markers that copy others, over the whole recording or only during a filled gap."""
+
+from facemotion.displacements import load_displacements
+from facemotion.provenance import write_table
+from facemotion.redundancy import find_redundant_markers
+from facemotion.snakemake_adapter import run_step
+
+
+def main(sm, log, prov):
+    d = load_displacements(sm.input.npz)
+    table = find_redundant_markers(d.A, d.labels, d.row_sentence, d.rate,
+                                   noise_mm=sm.params.noise_mm,
+                                   min_duration_s=sm.params.min_copy_s,
+                                   sentence_names=d.sentences)
+    log.info("%d suspect interval(s)", len(table))
+    write_table(table, sm.output.table, "redundancy", prov)
+
+
+run_step(snakemake, main)  # noqa: F821

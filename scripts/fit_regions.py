@@ -1,0 +1,29 @@
+"""X = R11^-1 R12 for k main markers, region maps and orthogonal-direction maps (Figs. 4-7)."""
+
+from facemotion.displacements import load_displacements
+from facemotion.loading import split_roles
+from facemotion.pivoted_qr import rank_markers
+from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
+from facemotion.prediction import fit_coefficients
+from facemotion.provenance import save_figure, write_table
+from facemotion.snakemake_adapter import run_step
+
+
+def main(sm, log, prov):
+    d = load_displacements(sm.input.npz)
+    train, _ = split_roles(d, sm.input.sentences)
+    k = int(sm.wildcards.k)
+    ranking = rank_markers(train.A, train.labels, method=sm.params.method)
+    X = fit_coefficients(ranking, k)
+    table = X.copy()
+    table.insert(0, "main_marker", X.index.astype(str))
+    write_table(table, sm.output.table, "coefficients", prov)
+    fig = plot_region_maps(d.neutral, d.labels, X, grid_n=sm.params.grid_n)
+    save_figure(fig, [sm.output.png, sm.output.pdf], "regions", prov)
+    fig = plot_orthogonal_directions(d.neutral, d.labels, ranking.R,
+                                     ranking.labels_in_order,
+                                     n_pivots=min(sm.params.orthogonal_maps, k))
+    save_figure(fig, [sm.output.orth_png, sm.output.orth_pdf], "orthogonal_directions", prov)
+
+
+run_step(snakemake, main)  # noqa: F821

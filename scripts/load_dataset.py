@@ -1,0 +1,31 @@
+"""Load a dataset's recordings into the displacement matrix A, with the gap check."""
+
+from facemotion.displacements import save_displacements
+from facemotion.loading import load_dataset
+from facemotion.plots.gaps import plot_gaps
+from facemotion.provenance import save_figure, sidecar_for_existing, write_table
+from facemotion.snakemake_adapter import run_step
+
+
+def main(sm, log, prov):
+    ds = sm.params.ds
+    recordings = list(sm.params.recordings)
+    loaded = load_dataset(
+        recordings, ds["format"], units=ds["units"], head_markers=ds["head_markers"],
+        exclude_markers=ds["exclude_markers"], include_markers=ds["include_markers"],
+        train=[i - 1 for i in ds["train"]], heldout=[i - 1 for i in ds["heldout"]],
+        max_interp_s=sm.params.gaps["max_interp_s"], long_gaps=sm.params.gaps["long_gaps"],
+        neutral=sm.params.neutral)
+    prov.inputs = list(prov.inputs) + [r for r in recordings]
+    d = loaded.displacements
+    log.info("A: %d rows x %d markers from %d sentences", *d.A.shape, len(d.sentences))
+    save_displacements(sm.output.npz, d)
+    sidecar_for_existing(sm.output.npz, "displacements", prov)
+    write_table(loaded.gap_report, sm.output.gaps, "gap_report", prov)
+    write_table(loaded.sentences, sm.output.sentences, "sentences", prov)
+    fig = plot_gaps(loaded.time_s, loaded.missing, loaded.filled, d.labels,
+                    sentence_bounds=loaded.sentence_starts_s)
+    save_figure(fig, [sm.output.gap_png, sm.output.gap_pdf], "gaps", prov)
+
+
+run_step(snakemake, main)  # noqa: F821

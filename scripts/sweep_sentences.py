@@ -1,0 +1,27 @@
+"""Stability of R against the number of sentences (paper Fig. 3)."""
+
+from facemotion.displacements import load_displacements
+from facemotion.loading import split_roles
+from facemotion.plots.sweep import plot_sentence_sweep
+from facemotion.provenance import save_figure, write_table
+from facemotion.sentence_sweep import sentence_sweep, stability
+from facemotion.snakemake_adapter import run_step
+
+
+def main(sm, log, prov):
+    train, _ = split_roles(load_displacements(sm.input.npz), sm.input.sentences)
+    p = sm.params
+    sweep = sentence_sweep(train.A, train.labels, train.row_sentence, n_pivots=p.n_pivots)
+    write_table(sweep, sm.output.sweep, "sentence_sweep", prov)
+    log.info("stability: %d replicates", p.replicates)
+    table = stability(train.A, train.labels, train.row_sentence, n_pivots=p.n_pivots,
+                      tolerance=p.settle_tolerance, k_agree=tuple(p.agreement_k),
+                      n_replicates=p.replicates, seed=p.seed)
+    if isinstance(table, tuple):
+        table = table[0]
+    write_table(table, sm.output.stability, "stability", prov)
+    fig = plot_sentence_sweep(sweep)
+    save_figure(fig, [sm.output.png, sm.output.pdf], "sentence_sweep", prov)
+
+
+run_step(snakemake, main)  # noqa: F821

@@ -1,0 +1,30 @@
+"""Selected markers across datasets (paper Table I), epsilon-ranks, Fig. 2 overlaid."""
+
+import pandas as pd
+
+from facemotion.plots.rank import plot_r_values
+from facemotion.provenance import save_figure, write_table
+from facemotion.snakemake_adapter import run_step
+
+
+def main(sm, log, prov):
+    labels = list(sm.params.labels)
+    r_tables = {lab: pd.read_csv(p, sep="\t", dtype={"marker": str})
+                for lab, p in zip(labels, sm.input.r_values, strict=True)}
+    n = sm.params.orders
+    table = pd.DataFrame({"order": range(1, n + 1)})
+    for lab, t in r_tables.items():
+        col = list(t["marker"][:n]) + [""] * max(0, n - len(t))
+        table[lab] = col
+    write_table(table, sm.output.table, "selected_markers", prov)
+    ranks = []
+    for lab, p in zip(labels, sm.input.rank, strict=True):
+        r = pd.read_csv(p, sep="\t", dtype={"redundant_markers": str}, keep_default_na=False)
+        r.insert(0, "dataset", lab)
+        ranks.append(r)
+    write_table(pd.concat(ranks, ignore_index=True), sm.output.summary, "summary", prov)
+    fig = plot_r_values(r_tables, tolerances=tuple(sm.params.tolerances_mm))
+    save_figure(fig, [sm.output.png, sm.output.pdf], "r_values_all", prov)
+
+
+run_step(snakemake, main)  # noqa: F821

@@ -1,0 +1,166 @@
+"""One path by which every recording (virtual or real) enters the analysis.
+
+read -> check labels -> remove head motion -> select markers -> fill gaps -> displacements.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from facemotion.displacements import Displacements, build_displacements
+from facemotion.errors import InputError
+from facemotion.gaps import fill_gaps
+from facemotion.head_motion import align_head
+from facemotion.readers import read_recording
+from facemotion.recording import Recording
+
+log = logging.getLogger("facemotion")
+
+
+@dataclass
+class LoadedDataset:
+    displacements: Displacements
+    gap_report: pd.DataFrame
+    sentences: pd.DataFrame
+    time_s: np.ndarray        # (F,) time of each frame in the concatenated recording
+    missing: np.ndarray       # (F, n) bool, missing before filling
+    filled: np.ndarray        # (F, n) bool, filled (by us or the producer)
+    sentence_starts_s: list[float]
+
+
+def _check_labels(recs: list[Recording]) -> None:
+    first = recs[0]
+    for rec in recs[1:]:
+        if rec.labels != first.labels:
+            extra = sorted(set(rec.labels) - set(first.labels))
+            lacking = sorted(set(first.labels) - set(rec.labels))
+            what = []
+            if extra:
+                what.append(f"extra markers {extra[:10]}")
+            if lacking:
+                what.append(f"missing markers {lacking[:10]}")
+            if not what:
+                what.append("the same markers in a different order")
+            raise InputError(f"{rec.source}: marker labels differ from {first.source}: "
+                             + "; ".join(what))
+        if rec.rate != first.rate:
+            raise InputError(f"{rec.source}: frame rate {rec.rate} Hz differs from "
+                             f"{first.source} ({first.rate} Hz)")
+
+
+def _aggregate_gap_reports(reports: list[pd.DataFrame]) -> pd.DataFrame:
+    cat = pd.concat(reports, ignore_index=True)
+    g = cat.groupby("marker", sort=False)
+    out = pd.DataFrame({
+        "marker": list(g.groups),
+        "frames": g["frames"].sum().to_numpy(),
+        "missing_frames": g["missing_frames"].sum().to_numpy(),
+        "longest_gap_frames": g["longest_gap_frames"].max().to_numpy(),
+        "n_gaps": g["n_gaps"].sum().to_numpy(),
+        "filled_frames": g["filled_frames"].sum().to_numpy(),
+    })
+    out.insert(3, "missing_fraction", out["missing_frames"] / out["frames"])
+    methods = g["fill_method"].agg(
+        lambda s: "+".join(sorted({m for v in s for m in str(v).split("+") if m != "none"}))
+        or "none")
+    out["fill_method"] = methods.to_numpy()
+    return out
+
+
+def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
+                 head_markers: list[str] = (), exclude_markers: list[str] = (),
+                 include_markers: list[str] = (), train: list[int], heldout: list[int],
+                 max_interp_s: float = 0.1, long_gaps: str = "pca",
+                 neutral: str = "first_frame") -> LoadedDataset:
+    """Load the sentences ``train + heldout`` (0-based indices into ``recordings``).
+
+    The dataset's sentences are ordered training sentences first, then held-out ones.
+    """
+    order = list(train) + list(heldout)
+    paths = [recordings[i] for i in order]
+    recs = []
+    for i, p in enumerate(paths):
+        log.info("reading %s (%d/%d)", p, i + 1, len(paths))
+        recs.append(read_recording(p, fmt, units=units))
+    _check_labels(recs)
+    labels = recs[0].labels
+    for m in list(exclude_markers) + list(include_markers):
+        if m not in labels:
+            raise InputError(f"{paths[0]}: marker {m!r} (named in the subject sheet) is not in "
+                             "the data")
+    # Head motion: one neutral head configuration (the first take's) for all takes.
+    residuals = []
+    if head_markers:
+        if len(head_markers) < 3:
+            raise InputError(f"{paths[0]}: {len(head_markers)} head marker(s) given "
+                             f"({', '.join(head_markers)}); at least 3 are needed")
+        ref_rec = recs[0].select(list(head_markers))
+        complete = np.flatnonzero(np.isfinite(ref_rec.points).all(axis=(1, 2)))
+        if complete.size == 0:
+            raise InputError(f"{paths[0]}: no frame has all head markers "
+                             f"{', '.join(head_markers)}")
+        reference = ref_rec.points[complete[0]]
+        aligned = []
+        for rec in recs:
+            a, res = align_head(rec, list(head_markers), reference=reference)
+            aligned.append(a)
+            residuals.append(res)
+            log.info("%s: head fit RMS residual mean %.3f mm, max %.3f mm", rec.source,
+                     float(np.mean(res)), float(np.max(res)))
+        recs = aligned
+    else:
+        residuals = [np.zeros(r.n_frames) for r in recs]
+    keep = [m for m in (include_markers or labels) if m not in set(exclude_markers)]
+    if len(keep) < 2:
+        raise InputError(f"{paths[0]}: fewer than 2 markers left after include/exclude")
+    recs = [r.select(keep) for r in recs]
+    missing = [~np.isfinite(r.points).all(axis=2) for r in recs]
+    filled_recs, reports = [], []
+    for r in recs:
+        f, rep = fill_gaps(r, max_interp_s=max_interp_s, long_gaps=long_gaps)
+        filled_recs.append(f)
+        reports.append(rep)
+    names = [Path(p).stem for p in paths]
+    disp = build_displacements(filled_recs, names, neutral=neutral, head_residuals=residuals)
+    roles = ["train"] * len(train) + ["heldout"] * len(heldout)
+    sentences = pd.DataFrame({
+        "sentence": names,
+        "file": [str(p) for p in paths],
+        "role": roles,
+        "frames": [r.n_frames for r in recs],
+        "duration_s": [r.n_frames / r.rate for r in recs],
+        "head_fit_rms_mm": [float(np.sqrt(np.mean(np.square(x)))) for x in residuals],
+        "head_fit_max_mm": [float(np.max(x)) if len(x) else 0.0 for x in residuals],
+    })
+    rate = recs[0].rate
+    starts = np.cumsum([0] + [r.n_frames for r in recs])[:-1] / rate
+    return LoadedDataset(
+        displacements=disp,
+        gap_report=_aggregate_gap_reports(reports),
+        sentences=sentences,
+        time_s=np.arange(sum(r.n_frames for r in recs)) / rate,
+        missing=np.concatenate(missing),
+        filled=np.concatenate([f.filled for f in filled_recs]),
+        sentence_starts_s=[float(s) for s in starts],
+    )
+
+
+def split_roles(d: Displacements, sentences: pd.DataFrame | str | Path
+                ) -> tuple[Displacements, Displacements | None]:
+    """Training and held-out parts of a dataset, by the ``role`` column of sentences.tsv."""
+    if not isinstance(sentences, pd.DataFrame):
+        sentences = pd.read_csv(sentences, sep="\t", dtype={"sentence": str})
+    role = dict(zip(sentences["sentence"], sentences["role"], strict=True))
+    unknown = [s for s in d.sentences if s not in role]
+    if unknown:
+        raise InputError(f"sentences table does not list sentence(s) {unknown[:5]}")
+    train = [i for i, s in enumerate(d.sentences) if role[s] == "train"]
+    held = [i for i, s in enumerate(d.sentences) if role[s] == "heldout"]
+    if not train:
+        raise InputError("dataset has no training sentences")
+    return d.subset(train), (d.subset(held) if held else None)

@@ -1,0 +1,212 @@
+"""Provenance sidecars and deterministic, atomic writing of tables and figures.
+
+Every table (TSV) and figure (PNG plus PDF) the study writes gets a ``<stem>.meta.json``
+sidecar: the output's schema id and version, the package version, the git commit of the code,
+the configuration values used and checksums of the inputs and of the outputs themselves.
+Nothing in a sidecar depends on the clock or on the machine, so a rerun with the same inputs
+reproduces every byte.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import subprocess
+import tempfile
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from facemotion import __version__
+from facemotion.errors import InputError
+
+SIDECAR_SUFFIX = ".meta.json"
+
+# Output schemas: id -> (version, required columns). Tables are checked against their schema
+# before they are written, so a contract break fails loudly instead of shipping a wrong table.
+TABLE_SCHEMAS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "gap_report": ("1", ("marker", "frames", "missing_frames", "missing_fraction",
+                         "longest_gap_frames", "n_gaps", "filled_frames", "fill_method")),
+    "sentences": ("1", ("sentence", "file", "role", "frames", "duration_s",
+                        "head_fit_rms_mm", "head_fit_max_mm")),
+    "r_values": ("1", ("order", "marker", "r", "r_rms")),
+    "rank": ("1", ("tolerance_mm", "epsilon_rank", "redundant_markers")),
+    "redundancy": ("1", ("marker", "explained_by", "coefficient", "residual_rms_mm",
+                         "start_s", "end_s")),
+    "sentence_sweep": ("1", ("n_sentences", "order", "marker", "r_rms")),
+    "stability": ("1", ()),
+    "optimality": ("1", ("k",)),
+    "coefficients": ("1", ("main_marker",)),
+    "error_curve": ("1", ("k", "mean_abs_error_mm", "mean_rel_error", "median_abs_error_mm",
+                          "max_abs_error_mm")),
+    "trajectory_errors": ("1", ("marker", "sentence", "k", "axis", "max_abs_error_mm")),
+    "selected_markers": ("1", ("order",)),
+    "lip_modes": ("1", ("mode", "variance", "cumulative_fraction")),
+    "lip_fit_residuals": ("1", ("frame",)),
+    "lip_reconstruction": ("1", ("view", "error_10_modes", "error_full_covariance")),
+    "summary": ("1", ()),
+    "manifest": ("1", ("path", "sha256", "schema_id", "schema_version", "sidecar")),
+}
+FIGURE_SCHEMA_VERSION = "1"
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+@lru_cache(maxsize=1)
+def git_commit() -> dict[str, Any]:
+    """Commit of the code that is running, and whether its tree had uncommitted changes."""
+    here = Path(__file__).resolve().parent
+    try:
+        commit = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"],
+                                capture_output=True, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain", "--", "."],
+                               capture_output=True, text=True, check=True).stdout.strip()
+        return {"commit": commit, "dirty": bool(dirty)}
+    except (OSError, subprocess.CalledProcessError):
+        return {"commit": "unknown", "dirty": None}
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    if value is None or isinstance(value, (str, int, float, bool)):
+        return value
+    return str(value)
+
+
+@dataclass
+class Provenance:
+    """What produced an output: the step, the settings it used and the inputs it read."""
+
+    step: str
+    config: Mapping[str, Any] = field(default_factory=dict)
+    inputs: Iterable[str] = ()
+
+    def sidecar(self, schema_id: str, schema_version: str, outputs: Iterable[str]) -> dict:
+        return {
+            "schema_id": f"facemotion/{schema_id}",
+            "schema_version": schema_version,
+            "package": "facemotion",
+            "package_version": __version__,
+            "git": git_commit(),
+            "step": self.step,
+            "config": _jsonable(dict(self.config)),
+            "inputs": [{"path": str(p), "sha256": sha256_file(p)}
+                       for p in sorted(set(map(str, self.inputs))) if os.path.isfile(p)],
+            "outputs": [{"path": str(p), "sha256": sha256_file(p)} for p in outputs],
+        }
+
+
+def sidecar_path(path: str | os.PathLike) -> Path:
+    """``results/x/r_values.tsv`` -> ``results/x/r_values.meta.json``."""
+    p = Path(path)
+    return p.with_name(p.stem + SIDECAR_SUFFIX)
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write to a temporary file beside ``path`` and rename it, so no half-written file is seen."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _write_sidecar(prov: Provenance, schema_id: str, version: str, outputs: list[str]) -> Path:
+    side = sidecar_path(outputs[0])
+    text = json.dumps(prov.sidecar(schema_id, version, outputs), indent=2, sort_keys=False)
+    atomic_write_bytes(side, (text + "\n").encode())
+    return side
+
+
+def table_bytes(df: pd.DataFrame) -> bytes:
+    """The TSV form of a table: fixed float format, no index, Unix newlines."""
+    buf = io.StringIO()
+    df.to_csv(buf, sep="\t", index=False, float_format="%.9g", lineterminator="\n")
+    return buf.getvalue().encode()
+
+
+def write_table(df: pd.DataFrame, path: str | os.PathLike, schema_id: str,
+                prov: Provenance) -> Path:
+    """Write a TSV table and its sidecar; returns the sidecar's path."""
+    if schema_id not in TABLE_SCHEMAS:
+        raise KeyError(f"unknown table schema {schema_id!r}")
+    version, required = TABLE_SCHEMAS[schema_id]
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        raise InputError(f"{path}: table {schema_id!r} lacks required columns {missing}")
+    atomic_write_bytes(path, table_bytes(df))
+    return _write_sidecar(prov, schema_id, version, [str(path)])
+
+
+def figure_bytes(fig, fmt: str, dpi: int = 120) -> bytes:
+    """Render a matplotlib figure with all time- and machine-dependent metadata removed."""
+    import matplotlib as mpl
+
+    metadata: dict[str, Any]
+    if fmt == "png":
+        metadata = {"Software": None}
+    elif fmt == "pdf":
+        metadata = {"Creator": None, "Producer": None, "CreationDate": None}
+    elif fmt == "svg":
+        metadata = {"Date": None, "Creator": None}
+    else:
+        raise InputError(f"unsupported figure format {fmt!r} (png, pdf or svg)")
+    buf = io.BytesIO()
+    with mpl.rc_context({"svg.hashsalt": "facemotion", "pdf.compression": 6}):
+        fig.savefig(buf, format=fmt, dpi=dpi, metadata=metadata)
+    return buf.getvalue()
+
+
+def save_figure(fig, paths: Iterable[str | os.PathLike], schema_id: str,
+                prov: Provenance) -> Path:
+    """Save one figure in every format named by ``paths`` (by suffix), plus one sidecar."""
+    paths = [str(p) for p in paths]
+    if not paths:
+        raise ValueError("save_figure needs at least one path")
+    for p in paths:
+        atomic_write_bytes(p, figure_bytes(fig, Path(p).suffix.lstrip(".").lower()))
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return _write_sidecar(prov, f"figure/{schema_id}", FIGURE_SCHEMA_VERSION, paths)
+
+
+def write_artifact(path: str | os.PathLike, data: bytes, schema_id: str, prov: Provenance,
+                   version: str = "1") -> Path:
+    """Write any other output (an animation, an npz) with a sidecar."""
+    atomic_write_bytes(path, data)
+    return _write_sidecar(prov, schema_id, version, [str(path)])
+
+
+def sidecar_for_existing(path: str | os.PathLike, schema_id: str, prov: Provenance,
+                         version: str = "1") -> Path:
+    """Sidecar for an output that a library wrote itself (already in place)."""
+    return _write_sidecar(prov, schema_id, version, [str(path)])

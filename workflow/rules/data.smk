@@ -1,0 +1,36 @@
+# Loading: readers, head-motion removal, gap check and filling, the displacement matrix A.
+
+
+rule load_dataset:
+    input:
+        load_inputs,
+    output:
+        npz="results/{dataset}/data/displacements.npz",
+        npz_meta="results/{dataset}/data/displacements.meta.json",
+        gaps="results/{dataset}/data/gap_report.tsv",
+        gaps_meta="results/{dataset}/data/gap_report.meta.json",
+        sentences="results/{dataset}/data/sentences.tsv",
+        sentences_meta="results/{dataset}/data/sentences.meta.json",
+        gap_png=report(
+            "results/{dataset}/data/gaps.png",
+            caption="../report/gaps.rst",
+            category="1. Data",
+            subcategory="{dataset}",
+        ),
+        gap_pdf="results/{dataset}/data/gaps.pdf",
+        gap_fig_meta="results/{dataset}/data/gaps.meta.json",
+    log:
+        "results/logs/load_dataset/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=20,
+    params:
+        ds=lambda wc: dataset_params(wc.dataset),
+        recordings=lambda wc: SUBJECTS[DATASETS[wc.dataset].subject].recordings,
+        gaps=config["gaps"],
+        neutral=config["neutral"],
+    script:
+        "../../scripts/load_dataset.py"

@@ -1,0 +1,70 @@
+# The lip model trained from data (Basu & Pentland 1997): FEM thin shell, minimal-force
+# fitting, learned modes and partial-view reconstruction (Table 1).
+
+
+rule simulate_lip_talker:
+    output:
+        tracks="results/lips/{lip_subject}/tracks.trc",
+        truth="results/lips/{lip_subject}/truth.npz",
+        truth_meta="results/lips/{lip_subject}/truth.meta.json",
+    log:
+        "results/logs/simulate_lip_talker/{lip_subject}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    params:
+        lip=lip_params,
+    script:
+        "../../scripts/simulate_lip_talker.py"
+
+
+rule fit_lip_model:
+    input:
+        unpack(lip_inputs),
+    output:
+        mesh_png=report(
+            "results/lips/{lip_subject}/mesh.png",
+            caption="../report/lip_mesh.rst",
+            category="6. Lip model",
+            subcategory="{lip_subject}",
+        ),
+        mesh_pdf="results/lips/{lip_subject}/mesh.pdf",
+        mesh_meta="results/lips/{lip_subject}/mesh.meta.json",
+        modes="results/lips/{lip_subject}/modes.tsv",
+        modes_meta="results/lips/{lip_subject}/modes.meta.json",
+        modes_png=report(
+            "results/lips/{lip_subject}/modes_plot.png",
+            caption="../report/lip_modes.rst",
+            category="6. Lip model",
+            subcategory="{lip_subject}",
+        ),
+        modes_pdf="results/lips/{lip_subject}/modes_plot.pdf",
+        modes_fig_meta="results/lips/{lip_subject}/modes_plot.meta.json",
+        residuals="results/lips/{lip_subject}/fit_residuals.tsv",
+        residuals_meta="results/lips/{lip_subject}/fit_residuals.meta.json",
+        reconstruction=report(
+            "results/lips/{lip_subject}/reconstruction.tsv",
+            caption="../report/lip_reconstruction.rst",
+            category="6. Lip model",
+            subcategory="{lip_subject}",
+        ),
+        reconstruction_meta="results/lips/{lip_subject}/reconstruction.meta.json",
+        sensitivity="results/lips/{lip_subject}/noise_sensitivity.tsv",
+        sensitivity_meta="results/lips/{lip_subject}/noise_sensitivity.meta.json",
+        heldout="results/lips/{lip_subject}/heldout_points.tsv",
+        heldout_meta="results/lips/{lip_subject}/heldout_points.meta.json",
+    log:
+        "results/logs/fit_lip_model/{lip_subject}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=20,
+    params:
+        lip=lip_params,
+    script:
+        "../../scripts/fit_lip_model.py"

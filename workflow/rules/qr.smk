@@ -1,0 +1,112 @@
+# Marker ranking by QR with column pivoting (Lucero & Munhall 2008, Figs. 2-3, Table I).
+
+
+rule rank_markers:
+    input:
+        npz="results/{dataset}/data/displacements.npz",
+        sentences="results/{dataset}/data/sentences.tsv",
+    output:
+        r_values="results/{dataset}/qr/r_values.tsv",
+        r_values_meta="results/{dataset}/qr/r_values.meta.json",
+        rank="results/{dataset}/qr/rank.tsv",
+        rank_meta="results/{dataset}/qr/rank.meta.json",
+        png=report(
+            "results/{dataset}/qr/r_values_plot.png",
+            caption="../report/r_values.rst",
+            category="2. Rank",
+            subcategory="{dataset}",
+        ),
+        pdf="results/{dataset}/qr/r_values_plot.pdf",
+        fig_meta="results/{dataset}/qr/r_values_plot.meta.json",
+    log:
+        "results/logs/rank_markers/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=10,
+    params:
+        label=lambda wc: DATASETS[wc.dataset].label,
+        method=config["qr"]["method"],
+        tolerances_mm=config["qr"]["tolerances_mm"],
+    script:
+        "../../scripts/rank_markers.py"
+
+
+rule find_redundant_markers:
+    input:
+        npz="results/{dataset}/data/displacements.npz",
+    output:
+        table="results/{dataset}/qr/redundancy.tsv",
+        meta="results/{dataset}/qr/redundancy.meta.json",
+    log:
+        "results/logs/find_redundant_markers/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=10,
+    params:
+        noise_mm=config["qr"]["noise_mm"],
+        min_copy_s=config["qr"]["min_copy_s"],
+    script:
+        "../../scripts/find_redundant_markers.py"
+
+
+rule sweep_sentences:
+    input:
+        npz="results/{dataset}/data/displacements.npz",
+        sentences="results/{dataset}/data/sentences.tsv",
+    output:
+        sweep="results/{dataset}/qr/sentence_sweep.tsv",
+        sweep_meta="results/{dataset}/qr/sentence_sweep.meta.json",
+        stability="results/{dataset}/qr/stability.tsv",
+        stability_meta="results/{dataset}/qr/stability.meta.json",
+        png=report(
+            "results/{dataset}/qr/sentence_sweep_plot.png",
+            caption="../report/sentence_sweep.rst",
+            category="2. Rank",
+            subcategory="{dataset}",
+        ),
+        pdf="results/{dataset}/qr/sentence_sweep_plot.pdf",
+        fig_meta="results/{dataset}/qr/sentence_sweep_plot.meta.json",
+    log:
+        "results/logs/sweep_sentences/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=20,
+    params:
+        label=lambda wc: DATASETS[wc.dataset].label,
+        n_pivots=config["qr"]["sweep_pivots"],
+        settle_tolerance=config["qr"]["settle_tolerance"],
+        agreement_k=config["qr"]["agreement_k"],
+        replicates=config["qr"]["replicates"],
+        seed=config["qr"]["seed"],
+    script:
+        "../../scripts/sweep_sentences.py"
+
+
+rule compare_subsets:
+    input:
+        npz="results/{dataset}/data/displacements.npz",
+        sentences="results/{dataset}/data/sentences.tsv",
+    output:
+        table="results/{dataset}/qr/optimality.tsv",
+        meta="results/{dataset}/qr/optimality.meta.json",
+    log:
+        "results/logs/compare_subsets/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    params:
+        k_max=config["qr"]["optimality_k_max"],
+    script:
+        "../../scripts/compare_subsets.py"

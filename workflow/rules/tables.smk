@@ -1,0 +1,58 @@
+# Tables and figures across datasets (Table I, Figs. 2, 9-10 overlaid).
+
+
+rule tabulate_selection:
+    input:
+        r_values=expand("results/{dataset}/qr/r_values.tsv", dataset=DATASETS),
+        rank=expand("results/{dataset}/qr/rank.tsv", dataset=DATASETS),
+    output:
+        table="results/tables/selected_markers.tsv",
+        meta="results/tables/selected_markers.meta.json",
+        summary="results/tables/rank_summary.tsv",
+        summary_meta="results/tables/rank_summary.meta.json",
+        png=report(
+            "results/figures/r_values.png",
+            caption="../report/r_values_all.rst",
+            category="0. Summary",
+        ),
+        pdf="results/figures/r_values.pdf",
+        fig_meta="results/figures/r_values.meta.json",
+    log:
+        "results/logs/tabulate_selection.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    params:
+        labels=[DATASETS[d].label for d in DATASETS],
+        orders=config["qr"]["table_orders"],
+        tolerances_mm=config["qr"]["tolerances_mm"],
+    script:
+        "../../scripts/tabulate_selection.py"
+
+
+rule plot_error_curves:
+    input:
+        curves=expand("results/{dataset}/eval/error_curve.tsv", dataset=EVAL_DATASETS),
+    output:
+        png=report(
+            "results/figures/error_curves.png",
+            caption="../report/error_curves_all.rst",
+            category="0. Summary",
+        ),
+        pdf="results/figures/error_curves.pdf",
+        fig_meta="results/figures/error_curves.meta.json",
+    log:
+        "results/logs/plot_error_curves.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    params:
+        labels=[DATASETS[d].label for d in EVAL_DATASETS],
+    script:
+        "../../scripts/plot_error_curves.py"
