@@ -19,4 +19,4 @@ include: "workflow/rules/lips.smk"
 rule all:
     default_target: True
     input:
-        all_outputs(),
+        final_outputs(),

@@ -116,6 +116,10 @@ def all_outputs():
     return out
 
 
+def final_outputs():
+    return all_outputs() + ["results/manifest.tsv"]
+
+
 def simulated_subject_params(wildcards):
     subj = SUBJECTS[wildcards.subject]
     return {

@@ -56,3 +56,20 @@ rule plot_error_curves:
         labels=[DATASETS[d].label for d in EVAL_DATASETS],
     script:
         "../../scripts/plot_error_curves.py"
+
+
+rule write_manifest:
+    input:
+        outputs=lambda wc: [p for p in all_outputs() if p != "results/manifest.tsv"],
+    output:
+        manifest="results/manifest.tsv",
+    log:
+        "results/logs/write_manifest.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    script:
+        "../../scripts/write_manifest.py"

@@ -1,0 +1,15 @@
+"""results/manifest.tsv: every output with its checksum, schema version and sidecar."""
+
+from facemotion.manifest import build_manifest
+from facemotion.provenance import atomic_write_bytes, table_bytes
+from facemotion.snakemake_adapter import run_step
+
+
+def main(sm, log, prov):
+    table = build_manifest("results", exclude=("results/logs", "results/manifest"))
+    log.info("%d outputs in the manifest", len(table))
+    # The manifest is the index of the sidecars, so it has none of its own.
+    atomic_write_bytes(sm.output.manifest, table_bytes(table))
+
+
+run_step(snakemake, main)  # noqa: F821
