@@ -2,9 +2,6 @@
 # Lucero & Munhall (2008) kinematic regions and Basu & Pentland (1997) lip model.
 
 
-configfile: workflow.source_path("config/config.yaml")
-
-
 include: "workflow/rules/common.smk"
 include: "workflow/rules/simulate.smk"
 include: "workflow/rules/data.smk"
@@ -14,6 +11,7 @@ include: "workflow/rules/eval.smk"
 include: "workflow/rules/animate.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/lips.smk"
+include: "workflow/rules/sweeps.smk"
 
 
 rule all:

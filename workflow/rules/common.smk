@@ -56,11 +56,6 @@ DATASETS = resolve_datasets(
     heldout_fraction=config["heldout_fraction"],
     default_per_subject=config["default_datasets"],
 )
-if not DATASETS:
-    raise InputError(
-        "no datasets: set default_datasets: true or define config.datasets"
-    )
-EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
 
 
 def dataset_recordings(wildcards):
@@ -113,7 +108,7 @@ def all_outputs():
         out += ["results/figures/error_curves.png"]
     for ls in config["lips"]["subjects"]:
         out += [f"results/lips/{ls}/reconstruction.tsv"]
-    return out
+    return out + sweep_outputs()
 
 
 def final_outputs():
@@ -164,3 +159,98 @@ def lip_inputs(wildcards):
             "mesh": str(SHARED_DATA / "mesh" / "canonical_face_model.obj"),
         }
     return {"tracks": [f"results/lips/{wildcards.lip_subject}/tracks.trc"]}
+
+
+# ---- virtual talkers (sweep over the generator's talker seed) ----
+from facemotion.subjects import Dataset, Subject
+
+TALKERS = []
+for _i in range(config["virtual_talkers"]["n_talkers"]):
+    _sid = f"V{_i + 1:02d}"
+    _n = config["virtual_talkers"]["n_sentences"]
+    _design = config["virtual_talkers"]["design"]
+    if _design not in ("S1", "S2a", "S2b", "S"):
+        raise InputError(f"setting virtual_talkers.design: unknown design {_design!r}")
+    _head = [f"H{j}" for j in range(1, 7)]
+    SUBJECTS[_sid] = Subject(
+        id=_sid,
+        recordings=[
+            f"results/virtual/{_sid}/{_sid}_s{j + 1:02d}.c3d" for j in range(_n)
+        ],
+        format="c3d",
+        head_markers=_head,
+        exclude_markers=_head,
+        simulate=_design,
+        seed=1000 + _i,
+        talker_seed=_i + 1,
+        n_sentences=_n,
+    )
+    _held = max(1, round(config["heldout_fraction"] * _n))
+    DATASETS[_sid] = Dataset(
+        _sid, _sid, _sid, list(range(_n - _held)), list(range(_n - _held, _n))
+    )
+    TALKERS.append(_sid)
+
+if not DATASETS:
+    raise InputError(
+        "no datasets: set default_datasets: true, define config.datasets or virtual_talkers"
+    )
+EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
+
+
+# ---- parameter sweeps ----
+from facemotion.sweeps import expand_grid
+
+
+def n_analysed_markers(dataset):
+    """Markers in the analysis of a dataset, known at parse time (reads one file's labels)."""
+    subj = SUBJECTS[DATASETS[dataset].subject]
+    if subj.include_markers:
+        labels = subj.include_markers
+    elif subj.simulate:
+        labels = [str(i) for i in range(1, 58)] + [f"H{j}" for j in range(1, 7)]
+    else:
+        from facemotion.readers import read_recording
+
+        labels = read_recording(
+            subj.recordings[0], subj.format, units=subj.units
+        ).labels
+    return len([m for m in labels if m not in set(subj.exclude_markers)])
+
+
+SWEEPS = {}
+for _name, _spec in config["sweeps"].items():
+    _dsets = _spec.get("datasets") or list(DATASETS)
+    for _d in _dsets:
+        if _d not in DATASETS:
+            raise InputError(f"setting sweeps.{_name}.datasets: unknown dataset {_d!r}")
+        _n = n_analysed_markers(_d)
+        for _k in _spec.get("k", []):
+            if _k >= _n:
+                raise InputError(
+                    f"setting sweeps.{_name}.k: k={_k} must be smaller than the "
+                    f"{_n} markers of dataset {_d}"
+                )
+        for _t in _spec.get("train_sentences", []):
+            if _t > len(DATASETS[_d].train):
+                raise InputError(
+                    f"setting sweeps.{_name}.train_sentences: {_t} exceeds the "
+                    f"{len(DATASETS[_d].train)} training sentences of dataset {_d}"
+                )
+    SWEEPS[_name] = {"datasets": _dsets, "points": expand_grid(_spec)}
+
+
+def sweep_point_files(wildcards):
+    sw = SWEEPS[wildcards.sweep]
+    return [
+        f"results/sweeps/{wildcards.sweep}/{d}/point_{i:03d}.tsv"
+        for d in sw["datasets"]
+        for i in range(len(sw["points"]))
+    ]
+
+
+def sweep_outputs():
+    out = [f"results/tables/sweep_{name}.tsv" for name in SWEEPS]
+    if TALKERS:
+        out.append("results/tables/talkers.tsv")
+    return out

@@ -1,0 +1,22 @@
+"""One point of a parameter sweep on one dataset."""
+
+import pandas as pd
+
+from facemotion.displacements import load_displacements
+from facemotion.loading import split_roles
+from facemotion.provenance import write_table
+from facemotion.snakemake_adapter import run_step
+from facemotion.sweeps import evaluate_point
+
+
+def main(sm, log, prov):
+    train, held = split_roles(load_displacements(sm.input.npz), sm.input.sentences)
+    row = evaluate_point(train, held, dict(sm.params.point), method=sm.params.method,
+                         settle_tolerance=sm.params.settle_tolerance)
+    row = {"sweep": sm.wildcards.sweep, "dataset": sm.params.label,
+           "point": int(sm.wildcards.point), **row}
+    log.info("%s", row)
+    write_table(pd.DataFrame([row]), sm.output.table, "summary", prov)
+
+
+run_step(snakemake, main)  # noqa: F821

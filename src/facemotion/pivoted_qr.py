@@ -1,0 +1,319 @@
+"""Marker ranking by QR with column pivoting (Lucero & Munhall 2008, Sec. II.C).
+
+The displacement matrix A (3F x n, frame-major rows, one column per marker, mm) is factored as
+
+    A P = Q R                                     (QR with column pivoting, Golub & Van Loan 5.4)
+
+The first pivot is the marker with the largest motion; each later pivot is the marker whose
+motion is least explained by the markers already chosen: |r_kk| is the norm of its component
+orthogonal to the span of the previous pivots.  ``r_rms = |r_kk| / sqrt(3F)`` is that component as
+an RMS displacement in mm, which is what the epsilon-rank compares with a tolerance in mm.
+
+Three routes give the same pivots and the same |R| (up to the sign of each row of R, which we fix
+so that diag(R) >= 0):
+
+``"scipy"``
+    ``scipy.linalg.qr(A, pivoting=True)`` on the full matrix (LAPACK dgeqp3).  The reference.
+``"tsqr"``
+    One streaming pass of unpivoted QR over row blocks, ``R0 = qr([R0; A_block])`` (TSQR), giving
+    an n x n R0 with A = Q0 R0.  Column norms and all inner products of A are those of R0
+    (A^T A = R0^T R0), so pivoted QR of R0 makes exactly the choices pivoted QR of A would make.
+``"gram"``
+    One pass G = A^T A (BLAS syrk), then diagonal-pivoting Cholesky of G: at step k the Schur
+    complement diagonal is the squared norm of each column's residual orthogonal to the pivots
+    so far, so choosing its largest entry is the QR pivot rule, and the Cholesky factor is R.
+    Accuracy: forming G squares the condition number.  The Schur complement diagonal r_kk^2 is
+    computed with an absolute error of about eps * r_11^2, so the relative error of r_kk is about
+    eps * (r_11 / r_kk)^2 / 2.  Once r_kk / r_11 approaches sqrt(eps) ~ 1e-8 the Gram route
+    returns noise (and may pick different pivots among the near-dependent columns).
+``"auto"``
+    The Gram route, falling back to TSQR when some r_kk / r_11 < ``GRAM_RATIO_LIMIT`` (1e-4,
+    i.e. a relative error in r_kk above ~1e-8), e.g. when a marker is a copy of another.
+
+Bad input raises :class:`facemotion.errors.InputError`: fewer rows than markers (3F < n makes A
+rank deficient by construction), NaN or inf in A, and a static marker (a column whose largest
+absolute value is below 1e-12 mm: it has no motion to rank, and its r_kk would be exactly zero).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import scipy.linalg
+
+from facemotion.errors import InputError
+
+#: Auto route: use the Gram matrix only while every r_kk / r_11 is above this ratio.
+GRAM_RATIO_LIMIT = 1e-4
+#: A marker whose largest absolute displacement is below this (mm) is static.
+STATIC_MM = 1e-12
+#: Rows per block of the streaming TSQR pass (a multiple of 3: whole frames).
+CHUNK_ROWS = 3 * 4096
+_EPS = np.finfo(float).eps
+METHODS = ("auto", "gram", "tsqr", "scipy")
+
+
+@dataclass(frozen=True)
+class MarkerRanking:
+    """Result of QR with column pivoting of A (A P = Q R).
+
+    order: pivot indices into the original columns (``order[0]`` is the first pivot).
+    labels_in_order: marker labels in pivot order.
+    R: n x n upper triangular factor, columns in pivot order, diag(R) >= 0.
+    r: |diag R| (mm * sqrt(rows)).
+    r_rms: r / sqrt(rows): RMS size (mm) of each marker's motion orthogonal to the markers
+        ranked before it.
+    rows: number of rows of A (3 x frames).
+    labels: marker labels in the original column order.
+    method: the route actually used ("gram", "tsqr" or "scipy").
+    rtol: relative tolerance on r_kk / r_11 below which a pivot counts as numerically zero.
+    """
+
+    order: np.ndarray
+    labels_in_order: list[str]
+    R: np.ndarray
+    r: np.ndarray
+    r_rms: np.ndarray
+    rows: int
+    labels: list[str]
+    method: str
+    rtol: float
+
+    @property
+    def n(self) -> int:
+        return len(self.labels)
+
+    def numerical_rank(self) -> int:
+        """Number of pivots with r_kk > rtol * r_11 (R11 of that size is safely invertible)."""
+        if self.r.size == 0 or self.r[0] == 0:
+            return 0
+        return int(np.count_nonzero(self.r > self.rtol * self.r[0]))
+
+
+def _unpack(A, labels):
+    """Accept a plain array + labels, or a Displacements-like object with .A and .labels."""
+    if labels is None and hasattr(A, "A") and hasattr(A, "labels"):
+        return np.asarray(A.A, dtype=float), [str(x) for x in A.labels]
+    if labels is None:
+        raise InputError("labels: marker labels are required with a plain displacement matrix")
+    return np.asarray(A, dtype=float), [str(x) for x in labels]
+
+
+def check_displacements(A: np.ndarray, labels: Sequence[str], *, name: str = "A") -> None:
+    """Shape checks shared by every route: 2-D, one label per column, 3F >= n rows."""
+    if A.ndim != 2:
+        raise InputError(f"{name}: displacement matrix must be 2-D (3F x n), got shape {A.shape}")
+    rows, n = A.shape
+    if len(labels) != n:
+        raise InputError(f"labels: {len(labels)} labels for {n} marker columns of {name}")
+    if len(set(labels)) != n:
+        dup = sorted({x for x in labels if list(labels).count(x) > 1})
+        raise InputError(f"labels: duplicate marker labels {', '.join(dup)}")
+    if n == 0:
+        raise InputError(f"{name}: no marker columns")
+    if rows % 3:
+        raise InputError(f"{name}: {rows} rows is not a multiple of 3 (x, y, z per frame)")
+    if rows < n:
+        raise InputError(
+            f"{name}: {rows // 3} frames ({rows} rows) for {n} markers: fewer rows than markers "
+            "makes A rank deficient by construction; use more frames"
+        )
+
+
+def nonfinite_markers(A: np.ndarray, labels: Sequence[str]) -> list[str]:
+    bad = ~np.isfinite(A).all(axis=0)
+    return [labels[j] for j in np.flatnonzero(bad)]
+
+
+def _raise_nonfinite(A, labels, name="A"):
+    bad = nonfinite_markers(A, labels)
+    raise InputError(f"{name}: NaN or inf displacements in marker(s) {', '.join(bad)}")
+
+
+def _check_column_norms(A, labels, sq_norms, name="A"):
+    """NaN/inf and static markers, from the squared column norms of a pass already made.
+
+    max|a_j| <= ||a_j|| <= sqrt(rows) max|a_j|, so a column is certainly moving when
+    ||a_j|| >= sqrt(rows) * STATIC_MM; only the few below are looked at directly.
+    """
+    if not np.all(np.isfinite(sq_norms)):
+        _raise_nonfinite(A, labels, name)
+    suspects = np.flatnonzero(np.sqrt(sq_norms) < np.sqrt(A.shape[0]) * STATIC_MM)
+    static = [labels[j] for j in suspects if np.max(np.abs(A[:, j])) < STATIC_MM]
+    if static:
+        raise InputError(
+            f"{name}: marker(s) {', '.join(static)} never move (max |displacement| < "
+            f"{STATIC_MM:g} mm): a static marker has no motion to rank; drop it"
+        )
+
+
+# --------------------------------------------------------------------------------------------
+# building blocks: TSQR update, Gram matrix, pivoted Cholesky
+# --------------------------------------------------------------------------------------------
+
+
+def update_r(R0: np.ndarray | None, A_block: np.ndarray) -> np.ndarray:
+    """TSQR update: the R factor of [R0; A_block] (mode 'r'), so that R^T R = R0^T R0 + B^T B.
+
+    Feeding row blocks one at a time gives the R of the whole stacked matrix in one pass.
+    Returns a (min(rows so far, n) x n) upper-trapezoidal array.
+    """
+    A_block = np.asarray(A_block, dtype=float)
+    stacked = A_block if R0 is None else np.vstack([R0, A_block])
+    R = scipy.linalg.qr(stacked, mode="r", check_finite=False)[0]
+    return R[: min(stacked.shape)]
+
+
+def tsqr_r(A: np.ndarray, chunk_rows: int = CHUNK_ROWS) -> np.ndarray:
+    """n x n R0 with A = Q0 R0 by streaming TSQR over row blocks (one pass over A)."""
+    R0 = None
+    for start in range(0, A.shape[0], chunk_rows):
+        R0 = update_r(R0, A[start : start + chunk_rows])
+    n = A.shape[1]
+    if R0.shape[0] < n:  # fewer rows than columns: pad with zero rows
+        R0 = np.vstack([R0, np.zeros((n - R0.shape[0], n))])
+    return R0
+
+
+def pivoted_cholesky(G: np.ndarray, n_steps: int | None = None):
+    """Diagonal-pivoting Cholesky of a batch of Gram matrices (left-looking).
+
+    G: (n, n) or (b, n, n) symmetric positive semidefinite.  At step k, with d the diagonal of
+    the Schur complement (d_j = squared norm of column j's residual orthogonal to the k pivots
+    chosen so far), pick p = argmax d (the QR pivot rule) and
+
+        r_kk = sqrt(d_p),   R[k, :] = (G[p, :] - sum_{i<k} R[i, p] R[i, :]) / r_kk
+
+    Returns (piv, Rrows): piv (b, n_steps) pivot indices, Rrows (b, n_steps, n) the rows of R
+    indexed by ORIGINAL column (R in pivot order is Rrows[..., order]).  Pivots whose d_p is
+    not positive get a zero row (rank-deficient G).
+    """
+    single = G.ndim == 2
+    G = np.asarray(G, dtype=float)
+    if single:
+        G = G[None]
+    b, n, _ = G.shape
+    n_steps = n if n_steps is None else n_steps
+    rows = np.arange(b)
+    d = np.diagonal(G, axis1=1, axis2=2).copy()
+    scale = np.maximum(d.max(axis=1), np.finfo(float).tiny)
+    Rr = np.zeros((b, n_steps, n))
+    piv = np.empty((b, n_steps), dtype=np.intp)
+    for k in range(n_steps):
+        p = np.argmax(d, axis=1)
+        dp = d[rows, p]
+        # Schur complement column p: G[p, :] - R[:k, p]^T R[:k, :]
+        g = G[rows, p, :] - np.einsum("bk,bkj->bj", Rr[rows, :k, p], Rr[:, :k, :])
+        ok = dp > n * _EPS * scale  # zero pivot: rank exhausted
+        rkk = np.sqrt(np.where(ok, dp, 1.0))
+        row = np.where(ok[:, None], g / rkk[:, None], 0.0)
+        Rr[:, k, :] = row
+        d -= row * row
+        d[rows, p] = -np.inf  # never pick again
+        piv[:, k] = p
+    if single:
+        return piv[0], Rr[0]
+    return piv, Rr
+
+
+def _complete_order(piv: np.ndarray, n: int) -> np.ndarray:
+    rest = np.setdiff1d(np.arange(n), piv, assume_unique=False)
+    return np.concatenate([piv, rest]).astype(np.intp)
+
+
+# --------------------------------------------------------------------------------------------
+# the ranking
+# --------------------------------------------------------------------------------------------
+
+
+def _ranking(R, order, A_rows, labels, method, rtol):
+    R = np.triu(np.asarray(R, dtype=float))
+    signs = np.where(np.diag(R) < 0, -1.0, 1.0)
+    R = R * signs[:, None]  # fix the sign of each row: diag(R) >= 0
+    r = np.abs(np.diag(R)).copy()
+    order = np.asarray(order, dtype=np.intp)
+    return MarkerRanking(
+        order=order,
+        labels_in_order=[labels[j] for j in order],
+        R=R,
+        r=r,
+        r_rms=r / np.sqrt(A_rows),
+        rows=int(A_rows),
+        labels=list(labels),
+        method=method,
+        rtol=rtol,
+    )
+
+
+def rank_from_r0(R0: np.ndarray, rows: int, labels: Sequence[str]) -> MarkerRanking:
+    """Pivoted QR (dgeqp3) of an n x n factor R0 with A^T A = R0^T R0 (e.g. from TSQR)."""
+    R, order = scipy.linalg.qr(R0, mode="r", pivoting=True, check_finite=False)
+    n = R0.shape[1]
+    return _ranking(R[:n], order, rows, labels, "tsqr", max(rows, n) * _EPS)
+
+
+def rank_from_gram(G: np.ndarray, rows: int, labels: Sequence[str]) -> MarkerRanking:
+    """Pivoted Cholesky of G = A^T A: G_PP = R^T R."""
+    n = G.shape[0]
+    piv, Rr = pivoted_cholesky(G)
+    order = _complete_order(piv, n)
+    # Gram accuracy: r_kk below ~sqrt(n eps) r_11 is noise
+    return _ranking(Rr[:, order], order, rows, labels, "gram", np.sqrt(n * _EPS))
+
+
+def rank_markers(A, labels: Sequence[str] | None = None, method: str = "auto") -> MarkerRanking:
+    """Rank markers by QR with column pivoting of A (3F x n, mm).  See the module docstring."""
+    A, labels = _unpack(A, labels)
+    if method not in METHODS:
+        raise InputError(f"method: unknown ranking method {method!r}; use one of {METHODS}")
+    check_displacements(A, labels)
+    rows, n = A.shape
+    if method == "scipy":
+        if not np.isfinite(A).all():
+            _raise_nonfinite(A, labels)
+        _check_column_norms(A, labels, np.einsum("ij,ij->j", A, A))
+        R, order = scipy.linalg.qr(A, mode="r", pivoting=True, check_finite=False)
+        return _ranking(R[:n], order, rows, labels, "scipy", max(rows, n) * _EPS)
+    if method in ("gram", "auto"):
+        G = A.T @ A  # one pass (syrk)
+        _check_column_norms(A, labels, np.diag(G).copy())
+        ranking = rank_from_gram(G, rows, labels)
+        if method == "gram" or ranking.r[-1] >= GRAM_RATIO_LIMIT * ranking.r[0]:
+            return ranking
+    R0 = tsqr_r(A)
+    if method == "tsqr":
+        _check_column_norms(A, labels, np.einsum("ij,ij->j", R0, R0))
+    return rank_from_r0(R0, rows, labels)
+
+
+def epsilon_rank(ranking: MarkerRanking, tolerances_mm) -> pd.DataFrame:
+    """Epsilon-rank for each tolerance: the number of pivots with r_rms > tolerance (mm).
+
+    ``redundant_markers`` lists the other markers (comma-separated labels, pivot order): each is
+    reproduced by the earlier pivots to within the tolerance (RMS, mm).
+    """
+    try:
+        tols = np.atleast_1d(np.asarray(tolerances_mm, dtype=float)).ravel()
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"tolerances_mm: not a list of numbers ({exc})") from None
+    bad = tols[~(np.isfinite(tols) & (tols > 0))]
+    if bad.size:
+        raise InputError(f"tolerances_mm: tolerances must be positive finite mm, got {bad[0]!r}")
+    out = []
+    for tol in tols:
+        keep = ranking.r_rms > tol
+        # pivoted QR makes r_kk non-increasing, so the rank is a prefix of the pivot order
+        k = int(np.count_nonzero(keep))
+        out.append(
+            {
+                "tolerance_mm": float(tol),
+                "epsilon_rank": k,
+                "redundant_markers": ",".join(
+                    lab for lab, kp in zip(ranking.labels_in_order, keep, strict=True) if not kp
+                ),
+            }
+        )
+    return pd.DataFrame(out, columns=["tolerance_mm", "epsilon_rank", "redundant_markers"])

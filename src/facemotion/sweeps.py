@@ -1,0 +1,100 @@
+"""Parameter sweeps across datasets and cross-subject summaries.
+
+A sweep is a grid over the settings that matter (epsilon tolerance, k, number of training
+sentences); the workflow expands it over every dataset and runs each point as a job.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import Counter
+
+import numpy as np
+import pandas as pd
+
+from facemotion.errors import InputError
+
+GRID_KEYS = ("tolerance_mm", "k", "train_sentences")
+DEFAULTS = {"tolerance_mm": 0.5, "k": 10, "train_sentences": None}
+
+
+def expand_grid(spec: dict) -> list[dict]:
+    """The cartesian product of the sweep's value lists, in a fixed order."""
+    keys = [k for k in GRID_KEYS if spec.get(k)]
+    values = [list(spec[k]) for k in keys]
+    points = []
+    for combo in itertools.product(*values) if keys else [()]:
+        point = dict(DEFAULTS)
+        point.update(dict(zip(keys, combo, strict=True)))
+        points.append(point)
+    return points
+
+
+def settled_after(sweep: pd.DataFrame, tolerance: float) -> int:
+    """Sentences after which every first-pivot r_rms stays within ``tolerance`` (relative)
+    of its final value (the same rule as the stability table)."""
+    wide = sweep.pivot(index="n_sentences", columns="order", values="r_rms").sort_index()
+    final = wide.iloc[-1]
+    ok = (np.abs(wide - final) <= tolerance * np.abs(final)).all(axis=1).to_numpy()
+    # the first n from which all later rows are within tolerance
+    bad = np.flatnonzero(~ok)
+    idx = 0 if bad.size == 0 else bad[-1] + 1
+    return int(wide.index[min(idx, len(wide) - 1)])
+
+
+def evaluate_point(train, held, point: dict, method: str = "auto", n_first: int = 10,
+                   settle_tolerance: float = 0.1) -> dict:
+    """One sweep point on one dataset (``train``/``held``: Displacements): epsilon-rank,
+    first pivots, held-out error at k, sentences for the first pivots to settle."""
+    # imported here so the workflow can expand grids at parse time without the numerics
+    from facemotion.pivoted_qr import epsilon_rank, rank_markers
+    from facemotion.prediction import error_curve
+    from facemotion.sentence_sweep import sentence_sweep
+
+    n_train = point.get("train_sentences")
+    if n_train is not None:
+        if n_train > len(train.sentences):
+            raise InputError(f"sweep setting train_sentences={n_train} exceeds the dataset's "
+                             f"{len(train.sentences)} training sentences")
+        train = train.subset(list(range(n_train)))
+    k = int(point["k"])
+    n = len(train.labels)
+    if k >= n:
+        raise InputError(f"sweep setting k={k} must be smaller than the number of markers ({n})")
+    ranking = rank_markers(train.A, train.labels, method=method)
+    tol = float(point["tolerance_mm"])
+    rank = epsilon_rank(ranking, [tol]).iloc[0]
+    row = {
+        "tolerance_mm": tol,
+        "k": k,
+        "train_sentences": len(train.sentences),
+        "epsilon_rank": int(rank["epsilon_rank"]),
+        "redundant_markers": rank["redundant_markers"],
+        "first_pivots": ",".join(ranking.labels_in_order[:n_first]),
+    }
+    if len(train.sentences) >= 2:
+        sweep = sentence_sweep(train.A, train.labels, train.row_sentence,
+                               n_pivots=min(12, n))
+        row["sentences_to_settle"] = settled_after(sweep, settle_tolerance)
+    else:
+        row["sentences_to_settle"] = np.nan
+    if held is not None:
+        curve = error_curve(ranking, held.A, held.labels).set_index("k")
+        row["heldout_mean_abs_error_mm"] = float(curve.loc[k, "mean_abs_error_mm"])
+        row["heldout_mean_rel_error"] = float(curve.loc[k, "mean_rel_error"])
+    else:
+        row["heldout_mean_abs_error_mm"] = np.nan
+        row["heldout_mean_rel_error"] = np.nan
+    return row
+
+
+def top_k_frequency(selected: pd.DataFrame, k: int = 10) -> pd.DataFrame:
+    """How often each marker is among the first k pivots across the columns of a Table I."""
+    cols = [c for c in selected.columns if c != "order"]
+    counts: Counter = Counter()
+    for c in cols:
+        counts.update(selected[c].astype(str).iloc[:k])
+    rows = sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))
+    return pd.DataFrame({"marker": [r[0] for r in rows],
+                         "count": [r[1] for r in rows],
+                         "fraction": [r[1] / len(cols) for r in rows]})
