@@ -2,10 +2,11 @@
 
 from pathlib import Path
 
-from facemotion.provenance import write_artifact
 from facemotion.readers import write_c3d
-from facemotion.snakemake_adapter import run_step
 from facemotion.synth import simulate_subject, truth_npz_bytes
+
+from facemotion.provenance import write_artifact
+from facemotion.snakemake_adapter import run_step
 
 
 def main(sm, log, prov):

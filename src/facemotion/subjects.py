@@ -251,7 +251,8 @@ def resolve_datasets(subjects: dict[str, Subject], datasets_cfg: dict | None,
     for did, spec in (datasets_cfg or {}).items():
         setting = f"datasets.{did}"
         if not _ID.match(str(did)):
-            raise InputError(f"setting {setting}: dataset id must be letters, digits, '_', '.', '-'")
+            raise InputError(f"setting {setting}: dataset id must be letters, digits, "
+                             "'_', '.', '-'")
         sid = spec.get("subject")
         if sid not in subjects:
             raise InputError(f"setting {setting}.subject: unknown subject {sid!r} "
