@@ -1,1 +1,26 @@
-raise NotImplementedError("lip stage pending")
+"""Write the virtual lip talker's tracked points as a TRC file, with its ground truth."""
+
+import io
+
+import numpy as np
+
+from facemotion.lips.virtual import make_virtual_talker
+from facemotion.provenance import write_artifact
+from facemotion.readers import write_trc
+from facemotion.snakemake_adapter import run_step
+
+
+def main(sm, log, prov):
+    spec = sm.params.lip["subject"]
+    talker = make_virtual_talker(n_frames=spec.get("frames", 150), seed=spec.get("seed", 0))
+    write_trc(sm.output.tracks, talker.recording)
+    buf = io.BytesIO()
+    np.savez(buf, truth=talker.truth, activations=talker.activations.to_numpy(),
+             gestures=np.array(list(talker.activations.columns)),
+             nodes=talker.mesh.nodes, tracked=np.array(talker.tracked_labels))
+    write_artifact(sm.output.truth, buf.getvalue(), "lip_truth", prov)
+    log.info("virtual lip talker: %d frames, %d tracked points", talker.recording.n_frames,
+             len(talker.tracked_labels))
+
+
+run_step(snakemake, main)  # noqa: F821

@@ -139,6 +139,7 @@ def lip_params(wildcards):
     return {
         "subject": spec,
         "n_modes": lips["n_modes"],
+        "normalisation": lips["normalisation"],
         "train_frames": lips["train_frames"],
         "test_frames": lips["test_frames"],
         "noise_var": lips["noise_var"],
