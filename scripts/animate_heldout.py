@@ -1,12 +1,12 @@
 """Animate held-out sentences: the face driven by the k main markers beside the measured one."""
 
 import numpy as np
+
 from facemotion.animation import render_frames, still_frame, write_animation
 from facemotion.displacements import load_displacements
-from facemotion.prediction import predict
-
 from facemotion.loading import split_roles
 from facemotion.pivoted_qr import rank_markers
+from facemotion.prediction import predict
 from facemotion.provenance import save_figure, sidecar_for_existing
 from facemotion.snakemake_adapter import run_step
 

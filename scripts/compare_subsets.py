@@ -1,11 +1,10 @@
 """How far from optimal is the pivoted-QR choice of k markers? (beyond the paper)"""
 
 from facemotion.displacements import load_displacements
-from facemotion.subset_optimality import subset_optimality
-
 from facemotion.loading import split_roles
 from facemotion.provenance import write_table
 from facemotion.snakemake_adapter import run_step
+from facemotion.subset_optimality import subset_optimality
 
 
 def main(sm, log, prov):

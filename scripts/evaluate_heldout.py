@@ -2,13 +2,13 @@
 
 import numpy as np
 import pandas as pd
-from facemotion.displacements import load_displacements
-from facemotion.plots.errors import plot_error_curves, plot_trajectory
-from facemotion.prediction import error_curve, predict
 
+from facemotion.displacements import load_displacements
 from facemotion.errors import InputError
 from facemotion.loading import split_roles
 from facemotion.pivoted_qr import rank_markers
+from facemotion.plots.errors import plot_error_curves, plot_trajectory
+from facemotion.prediction import error_curve, predict
 from facemotion.provenance import save_figure, write_table
 from facemotion.snakemake_adapter import run_step
 

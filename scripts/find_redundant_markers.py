@@ -1,9 +1,8 @@
 """Find markers that copy others, over the whole recording or only during a filled gap."""
 
 from facemotion.displacements import load_displacements
-from facemotion.redundancy import find_redundant_markers
-
 from facemotion.provenance import write_table
+from facemotion.redundancy import find_redundant_markers
 from facemotion.snakemake_adapter import run_step
 
 

@@ -1,11 +1,10 @@
 """X = R11^-1 R12 for k main markers, region maps and orthogonal-direction maps (Figs. 4-7)."""
 
 from facemotion.displacements import load_displacements
-from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
-from facemotion.prediction import fit_coefficients
-
 from facemotion.loading import split_roles
 from facemotion.pivoted_qr import rank_markers
+from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
+from facemotion.prediction import fit_coefficients
 from facemotion.provenance import save_figure, write_table
 from facemotion.snakemake_adapter import run_step
 

@@ -1,9 +1,8 @@
 """Load a dataset's recordings into the displacement matrix A, with the gap check."""
 
 from facemotion.displacements import save_displacements
-from facemotion.plots.gaps import plot_gaps
-
 from facemotion.loading import load_dataset
+from facemotion.plots.gaps import plot_gaps
 from facemotion.provenance import save_figure, sidecar_for_existing, write_table
 from facemotion.snakemake_adapter import run_step
 

@@ -1,8 +1,8 @@
 """Held-out error curves of all datasets overlaid (paper Figs. 9-10)."""
 
 import pandas as pd
-from facemotion.plots.errors import plot_error_curves
 
+from facemotion.plots.errors import plot_error_curves
 from facemotion.provenance import save_figure
 from facemotion.snakemake_adapter import run_step
 

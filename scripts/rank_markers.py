@@ -1,11 +1,11 @@
 """Rank markers by QR with column pivoting; epsilon-rank (paper Fig. 2)."""
 
 import pandas as pd
-from facemotion.displacements import load_displacements
-from facemotion.plots.rank import plot_r_values
 
+from facemotion.displacements import load_displacements
 from facemotion.loading import split_roles
 from facemotion.pivoted_qr import epsilon_rank, rank_markers
+from facemotion.plots.rank import plot_r_values
 from facemotion.provenance import save_figure, write_table
 from facemotion.snakemake_adapter import run_step
 

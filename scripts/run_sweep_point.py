@@ -1,8 +1,8 @@
 """One point of a parameter sweep on one dataset."""
 
 import pandas as pd
-from facemotion.displacements import load_displacements
 
+from facemotion.displacements import load_displacements
 from facemotion.loading import split_roles
 from facemotion.provenance import write_table
 from facemotion.snakemake_adapter import run_step

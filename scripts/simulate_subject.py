@@ -2,11 +2,10 @@
 
 from pathlib import Path
 
-from facemotion.readers import write_c3d
-from facemotion.synth import simulate_subject, truth_npz_bytes
-
 from facemotion.provenance import write_artifact
+from facemotion.readers import write_c3d
 from facemotion.snakemake_adapter import run_step
+from facemotion.synth import simulate_subject, truth_npz_bytes
 
 
 def main(sm, log, prov):

@@ -1,11 +1,10 @@
 """Stability of R against the number of sentences (paper Fig. 3)."""
 
 from facemotion.displacements import load_displacements
-from facemotion.plots.sweep import plot_sentence_sweep
-from facemotion.sentence_sweep import sentence_sweep, stability
-
 from facemotion.loading import split_roles
+from facemotion.plots.sweep import plot_sentence_sweep
 from facemotion.provenance import save_figure, write_table
+from facemotion.sentence_sweep import sentence_sweep, stability
 from facemotion.snakemake_adapter import run_step
 
 

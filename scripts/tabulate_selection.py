@@ -1,8 +1,8 @@
 """Selected markers across datasets (paper Table I), epsilon-ranks, Fig. 2 overlaid."""
 
 import pandas as pd
-from facemotion.plots.rank import plot_r_values
 
+from facemotion.plots.rank import plot_r_values
 from facemotion.provenance import save_figure, write_table
 from facemotion.snakemake_adapter import run_step
 
