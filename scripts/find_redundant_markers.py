@@ -11,7 +11,8 @@ def main(sm, log, prov):
     table = find_redundant_markers(d.A, d.labels, d.row_sentence, d.rate,
                                    noise_mm=sm.params.noise_mm,
                                    min_duration_s=sm.params.min_copy_s,
-                                   sentence_names=d.sentences)
+                                   sentence_names=d.sentences,
+                                   fill_mask=d.fill_mask)
     log.info("%d suspect interval(s)", len(table))
     write_table(table, sm.output.table, "redundancy", prov)
 

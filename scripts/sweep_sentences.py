@@ -14,12 +14,11 @@ def main(sm, log, prov):
     sweep = sentence_sweep(train.A, train.labels, train.row_sentence, n_pivots=p.n_pivots)
     write_table(sweep, sm.output.sweep, "sentence_sweep", prov)
     log.info("stability: %d replicates", p.replicates)
-    table = stability(train.A, train.labels, train.row_sentence, n_pivots=p.n_pivots,
-                      tolerance=p.settle_tolerance, k_agree=tuple(p.agreement_k),
-                      n_replicates=p.replicates, seed=p.seed)
-    if isinstance(table, tuple):
-        table = table[0]
-    write_table(table, sm.output.stability, "stability", prov)
+    result = stability(train.A, train.labels, train.row_sentence, n_pivots=p.n_pivots,
+                       tolerance=p.settle_tolerance, k_agree=tuple(p.agreement_k),
+                       n_replicates=p.replicates, seed=p.seed)
+    write_table(result.settling, sm.output.stability, "stability", prov)
+    write_table(result.agreement, sm.output.agreement, "stability", prov)
     fig = plot_sentence_sweep(sweep)
     save_figure(fig, [sm.output.png, sm.output.pdf], "sentence_sweep", prov)
 

@@ -202,14 +202,19 @@ def pivoted_cholesky(G: np.ndarray, n_steps: int | None = None):
     scale = np.maximum(d.max(axis=1), np.finfo(float).tiny)
     Rr = np.zeros((b, n_steps, n))
     piv = np.empty((b, n_steps), dtype=np.intp)
+    tol = n * _EPS * scale
     for k in range(n_steps):
         p = np.argmax(d, axis=1)
         dp = d[rows, p]
         # Schur complement column p: G[p, :] - R[:k, p]^T R[:k, :]
-        g = G[rows, p, :] - np.einsum("bk,bkj->bj", Rr[rows, :k, p], Rr[:, :k, :])
-        ok = dp > n * _EPS * scale  # zero pivot: rank exhausted
-        rkk = np.sqrt(np.where(ok, dp, 1.0))
-        row = np.where(ok[:, None], g / rkk[:, None], 0.0)
+        g = G[rows, p, :]
+        if k:
+            g = g - np.matmul(Rr[rows, :k, p][:, None, :], Rr[:, :k, :])[:, 0, :]
+        ok = dp > tol  # zero pivot: rank exhausted
+        if ok.all():
+            row = g / np.sqrt(dp)[:, None]
+        else:
+            row = np.where(ok[:, None], g / np.sqrt(np.where(ok, dp, 1.0))[:, None], 0.0)
         Rr[:, k, :] = row
         d -= row * row
         d[rows, p] = -np.inf  # never pick again

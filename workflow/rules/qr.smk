@@ -64,6 +64,8 @@ rule sweep_sentences:
         sweep_meta="results/{dataset}/qr/sentence_sweep.meta.json",
         stability="results/{dataset}/qr/stability.tsv",
         stability_meta="results/{dataset}/qr/stability.meta.json",
+        agreement="results/{dataset}/qr/stability_agreement.tsv",
+        agreement_meta="results/{dataset}/qr/stability_agreement.meta.json",
         png=report(
             "results/{dataset}/qr/sentence_sweep_plot.png",
             caption="../report/sentence_sweep.rst",

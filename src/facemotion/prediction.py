@@ -1,0 +1,274 @@
+"""Predicting all markers from k main markers (Lucero & Munhall 2008, Sec. II.D).
+
+With A P = Q R partitioned after the first k pivots,
+
+    R = [[R11, R12], [0, R22]],      A_s ~= A_m X,   X = R11^-1 R12            (paper eq. for X)
+
+where A_m holds the k main (pivot) markers and A_s the n - k secondary ones.  X is the least
+squares solution on the training data and its residual is ||A_s - A_m X||_F = ||R22||_F.
+
+Held-out error for every k from one factorization (``error_curve``): with B_P the held-out
+matrix in pivot order, C = B_P R^-1 expresses B in the training's orthogonal coordinates
+(column i of C is the held-out motion along the training's i-th orthogonal direction).  Since
+R is upper triangular, the first k columns of C only need R11: C[:, :k] = B_P[:, :k] R11^-1.
+The prediction of secondary column j >= k is B_m X[:, j] = C[:, :k] R[:k, j], so the residuals
+
+    E^(k)[:, j] = B_P[:, j] - sum_{i<k} C[:, i] R[i, j]          (j >= k)
+
+change by one rank-one term from k to k + 1: E^(k+1) = E^(k) - C[:, k] R[k, :].  All n - 1
+curves cost O(rows n^2) in total, like one more QR, instead of one least-squares fit per k.
+
+Error measures (held-out frames x secondary markers; the k main markers are exact):
+
+* ``mean_abs_error_mm``: mean 3-D Euclidean distance between measured and predicted position.
+* ``median_abs_error_mm``, ``max_abs_error_mm``: median and maximum of the same distances.
+* ``rms_error_mm``: RMS over all secondary-marker coordinates (x, y, z separately), i.e.
+  ||E||_F / sqrt(3 F (n - k)) = sqrt(mean squared distance / 3).
+* ``mean_rel_error``: sum of 3-D error distances / sum of 3-D measured displacement magnitudes,
+  both over the secondary markers and held-out frames (0 = perfect, 1 = as large as the motion).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+import scipy.linalg
+
+from facemotion.errors import InputError
+from facemotion.pivoted_qr import MarkerRanking, nonfinite_markers
+
+CURVE_COLUMNS = [
+    "k",
+    "mean_abs_error_mm",
+    "rms_error_mm",
+    "median_abs_error_mm",
+    "max_abs_error_mm",
+    "mean_rel_error",
+    "main_markers",
+]
+
+
+def _check_k(ranking: MarkerRanking, k) -> int:
+    n = ranking.n
+    rank = ranking.numerical_rank()
+    if isinstance(k, bool) or not isinstance(k, int | np.integer):
+        raise InputError(f"k: number of main markers must be an integer, got {k!r}")
+    k = int(k)
+    if not 1 <= k < n:
+        raise InputError(f"k: {k} main markers is outside 1 <= k < n = {n} markers")
+    if k > rank:
+        raise InputError(
+            f"k: {k} main markers exceeds the numerical rank {rank} of A "
+            "(R11 would be singular: the later pivots are linear combinations of earlier ones)"
+        )
+    return k
+
+
+def coefficients(ranking: MarkerRanking, k: int) -> np.ndarray:
+    """X = R11^-1 R12 as an array (k x n-k), rows/columns in pivot order."""
+    k = _check_k(ranking, k)
+    R = ranking.R
+    return scipy.linalg.solve_triangular(R[:k, :k], R[:k, k:], lower=False)  # X = R11^-1 R12
+
+
+def fit_coefficients(ranking: MarkerRanking, k: int) -> pd.DataFrame:
+    """X = R11^-1 R12: A_s ~= A_m X.  Index: main marker labels, columns: secondary labels."""
+    X = coefficients(ranking, k)
+    lab = ranking.labels_in_order
+    return pd.DataFrame(X, index=pd.Index(lab[:k], name="main"), columns=lab[k:])
+
+
+def residual_norm(ranking: MarkerRanking, k: int) -> float:
+    """||R22||_F = ||A_s - A_m X||_F on the training data (mm * sqrt(rows))."""
+    k = _check_k(ranking, k)
+    return float(np.linalg.norm(ranking.R[k:, k:]))
+
+
+def _align(ranking: MarkerRanking, B, labels, name="B") -> np.ndarray:
+    """B with its columns in the training's pivot order (matched by label)."""
+    B = np.asarray(B, dtype=float)
+    labels = [str(x) for x in labels]
+    if B.ndim != 2 or B.shape[1] != len(labels) or B.shape[0] % 3 or B.shape[0] == 0:
+        raise InputError(f"{name}: expected a (3F x {len(labels)}) matrix, got shape {B.shape}")
+    pos = {lab: j for j, lab in enumerate(labels)}
+    missing = [lab for lab in ranking.labels_in_order if lab not in pos]
+    if missing:
+        raise InputError(f"{name}: held-out data lacks training marker(s) {', '.join(missing)}")
+    bad = nonfinite_markers(B, labels)
+    if bad:
+        raise InputError(f"{name}: NaN or inf displacements in marker(s) {', '.join(bad)}")
+    return B[:, [pos[lab] for lab in ranking.labels_in_order]]
+
+
+def _stats(E3: np.ndarray, mag_sum: float, k: int, main: str) -> dict:
+    """Error measures of residuals E3 (F, 3, n_sec); mag_sum = sum of measured magnitudes."""
+    dist = np.sqrt(np.einsum("fcj,fcj->fj", E3, E3))  # 3-D distance per frame and marker
+    return {
+        "k": k,
+        "mean_abs_error_mm": float(dist.mean()),
+        "rms_error_mm": float(np.sqrt(np.mean(dist * dist) / 3.0)),
+        "median_abs_error_mm": float(np.median(dist)),
+        "max_abs_error_mm": float(dist.max()),
+        "mean_rel_error": float(dist.sum() / mag_sum) if mag_sum > 0 else float("nan"),
+        "main_markers": main,
+    }
+
+
+def _zero_row(n: int, lab: list[str]) -> dict:
+    return {
+        "k": n,
+        "mean_abs_error_mm": 0.0,
+        "rms_error_mm": 0.0,
+        "median_abs_error_mm": 0.0,
+        "max_abs_error_mm": 0.0,
+        "mean_rel_error": 0.0,
+        "main_markers": ",".join(lab),
+    }
+
+
+def error_curve(train_ranking: MarkerRanking, B, labels: Sequence[str]) -> pd.DataFrame:
+    """Held-out prediction error for every k = 1..rank (and k = n, zero error), one pass.
+
+    k stops at the numerical rank of the training data (R11 must be invertible); k = n is
+    always reported (every marker main: zero error).  Columns: see the module docstring.
+    """
+    rk = train_ranking
+    Bp = _align(rk, B, labels)
+    F = Bp.shape[0] // 3
+    n = rk.n
+    lab = rk.labels_in_order
+    rank = min(rk.numerical_rank(), n - 1)
+    R = rk.R
+    # C[:, :rank] = B_P[:, :rank] R11^-1   (solve R11^T C^T = B_P^T)
+    C = scipy.linalg.solve_triangular(R[:rank, :rank], Bp[:, :rank].T, trans="T").T
+    E3 = Bp.reshape(F, 3, n).copy()  # residuals E^(k), frame x axis x marker
+    C3 = C.reshape(F, 3, rank)
+    mag = np.sqrt(np.einsum("fcj,fcj->fj", Bp.reshape(F, 3, n), Bp.reshape(F, 3, n))).sum(0)
+    mag_tail = np.cumsum(mag[::-1])[::-1]  # sum of magnitudes of markers j >= k
+    out = []
+    for k in range(1, rank + 1):
+        # E^(k) = E^(k-1) - C[:, k-1] R[k-1, :]   (rank-one update, secondary columns only)
+        E3[:, :, k:] -= C3[:, :, k - 1, None] * R[k - 1, k:]
+        out.append(_stats(E3[:, :, k:], mag_tail[k], k, ",".join(lab[:k])))
+    out.append(_zero_row(n, lab))
+    return pd.DataFrame(out, columns=CURVE_COLUMNS)
+
+
+def error_curve_rms(train_ranking: MarkerRanking, B, labels: Sequence[str]) -> pd.DataFrame:
+    """RMS-only held-out error for every k from Gram matrices of B (frame count drops out).
+
+    With G = B_P^T B_P (one pass over B) and X = R11^-1 R12,
+
+        ||B_s - B_m X||_F^2 = tr(X^T G_mm X) - 2 tr(X^T G_ms) + tr(G_ss)
+
+    O(n^3) per k, independent of the number of held-out frames.  It subtracts large numbers, so
+    its absolute error is about eps * ||B_s||_F^2: negligible unless the error is ~1e-7 of the
+    motion.  Columns: k, rms_error_mm, main_markers.
+    """
+    rk = train_ranking
+    Bp = _align(rk, B, labels)
+    rows = Bp.shape[0]
+    n = rk.n
+    lab = rk.labels_in_order
+    rank = min(rk.numerical_rank(), n - 1)
+    G = Bp.T @ Bp
+    R = rk.R
+    out = []
+    for k in range(1, rank + 1):
+        X = scipy.linalg.solve_triangular(R[:k, :k], R[:k, k:])  # X = R11^-1 R12
+        Gmm, Gms = G[:k, :k], G[:k, k:]
+        sq = np.sum(X * (Gmm @ X)) - 2.0 * np.sum(X * Gms) + np.trace(G[k:, k:])
+        rms = np.sqrt(max(sq, 0.0) / (rows * (n - k)))
+        out.append({"k": k, "rms_error_mm": float(rms), "main_markers": ",".join(lab[:k])})
+    out.append({"k": n, "rms_error_mm": 0.0, "main_markers": ",".join(lab)})
+    return pd.DataFrame(out, columns=["k", "rms_error_mm", "main_markers"])
+
+
+def error_curve_naive(
+    A, B, labels: Sequence[str], ranking: MarkerRanking, measures: str = "all"
+) -> pd.DataFrame:
+    """Reference: for each k, least squares X = lstsq(A_m, A_s) on the training data A, then
+    the error of B_m X on the held-out B.  ``measures="rms"`` computes only rms_error_mm."""
+    A = np.asarray(A, dtype=float)
+    Ap = _align(ranking, A, labels, name="A")
+    Bp = _align(ranking, B, labels)
+    F = Bp.shape[0] // 3
+    n = ranking.n
+    lab = ranking.labels_in_order
+    rank = min(ranking.numerical_rank(), n - 1)
+    out = []
+    for k in range(1, rank + 1):
+        X = np.linalg.lstsq(Ap[:, :k], Ap[:, k:], rcond=None)[0]
+        E = Bp[:, k:] - Bp[:, :k] @ X
+        if measures == "rms":
+            rms = float(np.sqrt(np.mean(E * E)))
+            out.append({"k": k, "rms_error_mm": rms, "main_markers": ",".join(lab[:k])})
+            continue
+        Bs = Bp[:, k:].reshape(F, 3, n - k)
+        mag_sum = float(np.sqrt((Bs**2).sum(axis=1)).sum())
+        out.append(_stats(E.reshape(F, 3, n - k), mag_sum, k, ",".join(lab[:k])))
+    if measures == "rms":
+        out.append({"k": n, "rms_error_mm": 0.0, "main_markers": ",".join(lab)})
+        return pd.DataFrame(out, columns=["k", "rms_error_mm", "main_markers"])
+    out.append(_zero_row(n, lab))
+    return pd.DataFrame(out, columns=CURVE_COLUMNS)
+
+
+def predict(ranking: MarkerRanking, k: int, B, labels: Sequence[str] | None = None) -> np.ndarray:
+    """Predicted displacements of all markers from the k main markers of B.
+
+    B: (3F x n) with columns in ``labels`` order (default: the ranking's original label order).
+    Returns an array shaped like B, same column order; main-marker columns are copied exactly,
+    secondary columns are B_m X.
+    """
+    labels = ranking.labels if labels is None else [str(x) for x in labels]
+    B = np.asarray(B, dtype=float)
+    Bp = _align(ranking, B, labels)
+    X = coefficients(ranking, k)
+    pred_p = np.empty_like(Bp)
+    pred_p[:, :k] = Bp[:, :k]
+    pred_p[:, k:] = Bp[:, :k] @ X  # A_s ~= A_m X
+    pos = {lab: j for j, lab in enumerate(labels)}
+    out = B.copy()
+    out[:, [pos[lab] for lab in ranking.labels_in_order]] = pred_p
+    return out
+
+
+def trajectory_errors(
+    B_true,
+    B_pred,
+    labels: Sequence[str],
+    marker: str,
+    row_frame: np.ndarray | None = None,
+) -> pd.DataFrame:
+    """Largest absolute error per axis (x, y, z) of one marker's predicted trajectory.
+
+    Columns: marker, axis, max_abs_error_mm, frame (frame index of the maximum; from
+    ``row_frame`` when given, else the frame number within B), rms_error_mm.
+    """
+    labels = [str(x) for x in labels]
+    B_true = np.asarray(B_true, dtype=float)
+    B_pred = np.asarray(B_pred, dtype=float)
+    if B_true.shape != B_pred.shape:
+        raise InputError(f"B_pred: shape {B_pred.shape} differs from B_true {B_true.shape}")
+    if str(marker) not in labels:
+        raise InputError(f"marker: {marker!r} is not one of the markers")
+    j = labels.index(str(marker))
+    F = B_true.shape[0] // 3
+    err = (B_pred[:, j] - B_true[:, j]).reshape(F, 3)
+    frames = np.arange(F) if row_frame is None else np.asarray(row_frame)[::3]
+    out = []
+    for c, axis in enumerate("xyz"):
+        f = int(np.argmax(np.abs(err[:, c])))
+        out.append(
+            {
+                "marker": str(marker),
+                "axis": axis,
+                "max_abs_error_mm": float(abs(err[f, c])),
+                "frame": int(frames[f]),
+                "rms_error_mm": float(np.sqrt(np.mean(err[:, c] ** 2))),
+            }
+        )
+    return pd.DataFrame(out)
