@@ -1,0 +1,88 @@
+"""Where samples were missing and where they were filled: a raster over time per marker."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from facemotion.errors import InputError
+
+MISSING_COLOUR = "#EE6677"  # red: missing and left unfilled
+FILLED_COLOUR = "#4477AA"  # blue: filled (interpolated or reconstructed)
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Runs of True in a 1-D boolean array as (start, stop) index pairs, stop exclusive."""
+    m = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]])
+    d = np.diff(m.astype(np.int8))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(),
+                    strict=True))
+
+
+def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=None,
+              max_all: int = 30) -> Figure:
+    """Raster of missing (red) and filled (blue) samples over time, one row per marker.
+
+    missing and filled are (frames, markers) bool; a sample that is both is drawn as filled.
+    Each run of samples is one bar from the run's first sample time to its last plus one frame
+    interval, so a single flagged frame stays visible. With more than ``max_all`` markers only
+    markers with any flagged sample get a row; the figure says how many were left out.
+    """
+    t = np.asarray(time_s, dtype=float)
+    missing = np.asarray(missing, dtype=bool)
+    filled = np.asarray(filled, dtype=bool)
+    labels = [str(s) for s in labels]
+    shape = (t.size, len(labels))
+    if missing.shape != shape or filled.shape != shape:
+        raise InputError(f"gap raster: missing {missing.shape} and filled {filled.shape} must be "
+                         f"(frames, markers) = {shape}")
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    flagged = missing | filled
+    any_flag = flagged.any(axis=0)
+    if len(labels) > max_all:
+        show = np.flatnonzero(any_flag)
+    else:
+        show = np.arange(len(labels))
+    hidden = len(labels) - show.size
+    nrows = max(show.size, 1)
+    fig = Figure(figsize=(10.0, min(2.2 + 0.16 * nrows, 14.0)), layout="constrained")
+    ax = fig.subplots()
+    only_missing = missing & ~filled
+    for row, j in enumerate(show):
+        for mask, c in ((only_missing[:, j], MISSING_COLOUR), (filled[:, j], FILLED_COLOUR)):
+            r = runs(mask)
+            if r:
+                bars = [(t[a], t[b - 1] + dt - t[a]) for a, b in r]
+                ax.broken_barh(bars, (row - 0.4, 0.8), facecolors=c, edgecolors=c,
+                               linewidths=0.4, gid="missing" if c == MISSING_COLOUR else "filled")
+    if sentence_bounds is not None:
+        for b in np.asarray(sentence_bounds, dtype=float):
+            ax.axvline(b, color="0.6", lw=0.6, alpha=0.6, zorder=0)
+    ax.set_yticks(np.arange(show.size), [labels[j] for j in show],
+                  fontsize=7 if show.size > 25 else 8)
+    ax.set_ylim(nrows - 0.5, -0.5)
+    if t.size:
+        ax.set_xlim(t[0], t[-1] + dt)
+    ax.set_xlabel("time (s, sentences concatenated)")
+    ax.set_ylabel("marker")
+    n_miss, n_fill = int(only_missing.sum()), int(filled.sum())
+    frac = flagged.sum() / max(flagged.size, 1)
+    title = (f"Missing and filled samples: {n_fill} filled, {n_miss} left missing "
+             f"({100 * frac:.2f}% of {flagged.size} samples)")
+    if hidden:
+        title += (f"\nonly the {show.size} markers with flagged samples are shown; "
+                  f"{hidden} markers with no missing samples not shown")
+    if show.size == 0:
+        ax.text(0.5, 0.5, f"no missing or filled samples in any of the {len(labels)} markers",
+                transform=ax.transAxes, ha="center", va="center")
+    ax.set_title(title, fontsize=9.5)
+    ax.grid(True, axis="x", alpha=0.3)
+    fig.legend(handles=[Patch(color=MISSING_COLOUR, label="missing (not filled)"),
+                        Patch(color=FILLED_COLOUR, label="filled"),
+                        Line2D([], [], color="0.6", lw=0.8, label="sentence start")],
+               loc="outside lower center", ncols=3, fontsize=8, frameon=False)
+    return fig

@@ -1,0 +1,159 @@
+"""Kinematic region maps (paper Figs. 4-7) and maps of the orthogonal directions (rows of R).
+
+Both draw, per main marker, a per-marker coefficient interpolated over the frontal face
+(x as is: the talker's right on the viewer's left), grey-scale with darker = larger, on one
+colour scale shared by all panels; negative subregions are hatched and outlined in blue.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
+
+from facemotion.errors import InputError
+from facemotion.plots.facemap import (
+    NEGATIVE_COLOUR,
+    as_neutral,
+    draw_field,
+    draw_markers,
+    label_index,
+    setup_frontal,
+    symmetric_limits,
+)
+
+
+def region_coefficients(labels: Sequence[str], X: pd.DataFrame) -> np.ndarray:
+    """Per-marker fit coefficients, one row per main marker (k, n) in the order of ``labels``.
+
+    Row i: the main marker i itself 1, the other main markers 0, and each secondary marker j
+    X[main_i, j], the weight of main marker i in the prediction of j (x_j = sum_i X_ij a_i,
+    X = R11^-1 R12, paper Eq. 9).
+    """
+    labels = [str(s) for s in labels]
+    mains = [str(s) for s in X.index]
+    secondary = [str(s) for s in X.columns]
+    overlap = sorted(set(mains) & set(secondary))
+    if overlap:
+        raise InputError(f"coefficient table: markers {overlap} are both main and secondary")
+    im = label_index(labels, mains, "main marker")
+    isec = label_index(labels, secondary, "secondary marker")
+    covered = len(mains) + len(secondary)
+    if covered != len(labels):
+        rest = sorted(set(labels) - set(mains) - set(secondary))
+        raise InputError(f"coefficient table lacks markers {rest} (neither main nor secondary)")
+    C = np.zeros((len(mains), len(labels)))
+    C[np.arange(len(mains)), im] = 1.0
+    C[:, isec] = X.to_numpy(dtype=float)
+    return C
+
+
+def orthogonal_direction_coefficients(R: np.ndarray, order_labels: Sequence[str],
+                                      labels: Sequence[str], n_pivots: int) -> np.ndarray:
+    """Rows of R divided by their diagonal, reordered from pivot order to ``labels`` order.
+
+    A P = Q R (paper Eq. 4): column j of A P has component R[i, j] along the i-th orthogonal
+    direction q_i; R[i, j] / R[i, i] is marker j's motion along q_i relative to pivot i's.
+    """
+    R = np.asarray(R, dtype=float)
+    order_labels = [str(s) for s in order_labels]
+    if R.ndim != 2 or R.shape[1] != len(order_labels):
+        raise InputError(f"R must have one column per marker ({len(order_labels)}), "
+                         f"got shape {R.shape}")
+    if sorted(order_labels) != sorted(labels):
+        raise InputError("pivot-order labels and face marker labels are not the same set: "
+                         f"{sorted(set(order_labels) ^ set(labels))}")
+    n_pivots = min(int(n_pivots), R.shape[0], R.shape[1])
+    if n_pivots < 1:
+        raise InputError(f"n_pivots must be at least 1, got {n_pivots}")
+    col = label_index(order_labels, labels)
+    out = np.empty((n_pivots, len(labels)))
+    for i in range(n_pivots):
+        if R[i, i] == 0:
+            raise InputError(f"R[{i}, {i}] is zero (pivot {order_labels[i]}): rank-deficient")
+        out[i] = R[i, col] / R[i, i]
+    return out
+
+
+def _grid_shape(n: int, max_cols: int = 5) -> tuple[int, int]:
+    ncols = min(n, max_cols)
+    return math.ceil(n / ncols), ncols
+
+
+def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
+                  mains: list[str], titles: list[str], grid_n: int, suptitle: str,
+                  cbar_label: str, highlight_all: bool, negative_below: float) -> Figure:
+    xy = neutral[:, :2]
+    nrows, ncols = _grid_shape(len(mains))
+    fig = Figure(figsize=(2.7 * ncols + 1.0, 3.0 * nrows + 0.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False)
+                         ).ravel()
+    norm = Normalize(vmin=0.0, vmax=symmetric_limits(coeffs, floor=1.0))
+    mesh = None
+    thr = negative_below * norm.vmax
+    any_negative = bool((coeffs < -thr).any())
+    for p, ax in enumerate(axes):
+        if p >= len(mains):
+            ax.set_axis_off()
+            continue
+        mesh = draw_field(ax, xy, coeffs[p], norm, grid_n, negative_below=thr)
+        others = [m for m in mains if m != mains[p]] if highlight_all else []
+        if others:
+            io = label_index(labels, others)
+            ax.scatter(xy[io, 0], xy[io, 1], s=14, facecolors="none", edgecolors="#EE6677",
+                       linewidths=0.7, zorder=4)
+        draw_markers(ax, xy, labels, highlight=[mains[p]])
+        setup_frontal(ax, xy)
+        ax.set_title(titles[p], fontsize=10)
+        ax.label_outer()
+    if mesh is not None:
+        cb = fig.colorbar(mesh, ax=axes.tolist(), shrink=0.8, extend="neither")
+        cb.set_label(cbar_label)
+    if any_negative:
+        fig.legend(handles=[Patch(facecolor="white", edgecolor=NEGATIVE_COLOUR, hatch="////",
+                                  label=f"negative: below {-thr:.2g} (values < 0 are white)")],
+                   loc="outside lower right", fontsize=8, frameon=False)
+    fig.suptitle(suptitle)
+    return fig
+
+
+def plot_region_maps(neutral, labels: Sequence[str], X: pd.DataFrame,
+                     grid_n: int = 100, negative_below: float = 0.05) -> Figure:
+    """Kinematic region of each main marker (paper Figs. 4-7): its fit coefficient for every
+    marker (itself 1, other main markers 0, secondary j: X[main, j]) interpolated over the face.
+
+    Negative subregions deeper than ``negative_below`` times the colour scale's maximum are
+    hatched (shallower ones are estimation noise and would hatch most of the face).
+    """
+    neutral, labels = as_neutral(neutral, labels)
+    C = region_coefficients(labels, X)
+    mains = [str(s) for s in X.index]
+    titles = [f"main marker {m}" for m in mains]
+    return _field_panels(
+        neutral, labels, C, mains, titles, grid_n,
+        suptitle=(f"Kinematic regions of the k = {len(mains)} main markers: coefficient of each "
+                  "main marker in the prediction of every marker (frontal view)"),
+        cbar_label="fit coefficient (main marker = 1)", highlight_all=True,
+        negative_below=negative_below)
+
+
+def plot_orthogonal_directions(neutral, labels: Sequence[str], R: np.ndarray,
+                               order_labels: Sequence[str], n_pivots: int = 4,
+                               grid_n: int = 100, negative_below: float = 0.05) -> Figure:
+    """How much each marker moves along the first ``n_pivots`` orthogonal directions q_i
+    (rows of R, each divided by its diagonal entry), interpolated over the face."""
+    neutral, labels = as_neutral(neutral, labels)
+    C = orthogonal_direction_coefficients(R, order_labels, labels, n_pivots)
+    pivots = [str(s) for s in order_labels[: C.shape[0]]]
+    titles = [f"q{i + 1}: pivot {m}" for i, m in enumerate(pivots)]
+    return _field_panels(
+        neutral, labels, C, pivots, titles, grid_n,
+        suptitle=(f"Motion along the first {len(pivots)} orthogonal directions: "
+                  "R[i, j] / R[i, i] (earlier pivots are 0)"),
+        cbar_label="R[i, j] / R[i, i]", highlight_all=False,
+        negative_below=negative_below)

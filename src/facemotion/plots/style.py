@@ -1,0 +1,47 @@
+"""Shared figure style: colour-blind-safe colour cycles and small helpers."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import pandas as pd
+from matplotlib.ticker import LogFormatter
+
+from facemotion.errors import InputError
+
+# Paul Tol's "bright" qualitative scheme (colour-blind safe), then "muted" for more series.
+QUALITATIVE = ("#4477AA", "#EE6677", "#228833", "#CCBB44", "#66CCEE", "#AA3377", "#BBBBBB",
+               "#332288", "#117733", "#999933", "#882255", "#44AA99", "#DDCC77", "#CC6677")
+LINESTYLES = ("-", "--", "-.", ":")
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+
+
+def colour(i: int) -> str:
+    return QUALITATIVE[i % len(QUALITATIVE)]
+
+
+def require_columns(df: pd.DataFrame, columns, what: str) -> None:
+    """One-line error naming the table and the columns it lacks."""
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        raise InputError(f"{what}: table lacks columns {missing} (has {list(df.columns)})")
+
+
+def require_tables(tables: Mapping[str, pd.DataFrame], columns, what: str) -> None:
+    if not tables:
+        raise InputError(f"{what}: no tables to plot")
+    for name, df in tables.items():
+        require_columns(df, columns, f"{what} [{name}]")
+
+
+class _PlainLogFormatter(LogFormatter):
+    """LogFormatter's choice of which ticks to label, written as plain numbers (0.5, 2)."""
+
+    def __call__(self, x, pos=None):
+        return f"{x:g}" if super().__call__(x, pos) else ""
+
+
+def plain_log_labels(axis) -> None:
+    """Plain numbers (0.5, 1, 2) on a log axis; minor ticks labelled when few decades show."""
+    axis.set_major_formatter(_PlainLogFormatter(labelOnlyBase=False))
+    axis.set_minor_formatter(_PlainLogFormatter(labelOnlyBase=False, minor_thresholds=(2, 0.5)))

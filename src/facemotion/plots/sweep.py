@@ -1,0 +1,53 @@
+"""Stability of the pivots against the number of sentences (paper Fig. 3)."""
+
+from __future__ import annotations
+
+import pandas as pd
+from matplotlib import colormaps
+from matplotlib.figure import Figure
+
+from facemotion.errors import InputError
+from facemotion.plots.style import LINESTYLES, MARKERS, plain_log_labels, require_columns
+
+
+def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
+    """r_rms (mm) of the first ``n_orders`` pivots against the number of sentences used.
+
+    One line per pivot order; the legend gives each order's marker label at the largest
+    number of sentences (the marker may change at smaller numbers: its label there is marked
+    on the line where it differs from the final one).
+    """
+    require_columns(df, ("n_sentences", "order", "marker", "r_rms"), "sentence sweep")
+    df = df[df["order"] <= n_orders].sort_values(["order", "n_sentences"])
+    if df.empty:
+        raise InputError(f"sentence sweep: no rows with order <= {n_orders}")
+    orders = sorted(df["order"].unique())
+    cmap = colormaps["viridis"]
+    fig = Figure(figsize=(7.4, 4.8), layout="constrained")
+    ax = fig.subplots()
+    n_final = int(df["n_sentences"].max())
+    for j, o in enumerate(orders):
+        g = df[df["order"] == o]
+        final = g[g["n_sentences"] == g["n_sentences"].max()]["marker"].astype(str).iloc[0]
+        c = cmap(j / max(1, len(orders) - 1) * 0.9)
+        ax.plot(g["n_sentences"], g["r_rms"], color=c, lw=1.3,
+                ls=LINESTYLES[j % len(LINESTYLES)], marker=MARKERS[j % len(MARKERS)], ms=3.5,
+                label=f"{int(o)}: {final}")
+        for n, m, r in zip(g["n_sentences"], g["marker"].astype(str), g["r_rms"], strict=True):
+            if m != final:
+                ax.annotate(m, (n, r), xytext=(0, 4), textcoords="offset points", fontsize=6,
+                            color=c, ha="center")
+    ax.set_xlabel("number of sentences in the displacement matrix")
+    if (df["r_rms"] > 0).all():
+        ax.set_yscale("log")
+        plain_log_labels(ax.yaxis)
+        ax.set_ylabel("r_rms of the pivot (mm, log scale)")
+    else:
+        ax.set_ylabel("r_rms of the pivot (mm)")
+    ax.set_title(f"Stability of the first {len(orders)} pivots against the number of sentences\n"
+                 "(small labels: pivot marker where it differs from the final one)",
+                 fontsize=9.5)
+    ax.grid(True, alpha=0.3)
+    fig.legend(title=f"order: marker\n(at n = {n_final})", fontsize=7.5, title_fontsize=8,
+               loc="outside right upper")
+    return fig

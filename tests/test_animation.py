@@ -1,0 +1,176 @@
+"""Animation: the face surface against an analytic case, frames, and reproducible files."""
+
+import hashlib
+
+import matplotlib
+
+matplotlib.use("Agg")
+import imageio.v2 as imageio  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+from PIL import Image  # noqa: E402
+
+from facemotion.animation import (  # noqa: E402
+    _gif_durations_ms,
+    _SurfaceInterpolator,
+    face_surface,
+    frame_indices,
+    render_frames,
+    still_frame,
+    write_animation,
+)
+from facemotion.errors import InputError  # noqa: E402
+
+
+def planar_face():
+    """Markers on rings of an ellipse, on the plane z = 0.1 x + 0.2 y + 30 (mm)."""
+    pts = [(0.0, 0.0)]
+    for r in range(1, 5):
+        a = np.linspace(0, 2 * np.pi, 8 + 2 * r, endpoint=False) + 0.3 * r
+        pts += list(zip(18.0 * r * np.cos(a), 24.0 * r * np.sin(a), strict=True))
+    xy = np.array(pts)
+    return np.column_stack([xy, 0.1 * xy[:, 0] + 0.2 * xy[:, 1] + 30.0])
+
+
+@pytest.fixture(scope="module")
+def motion():
+    neutral = planar_face()
+    n = len(neutral)
+    labels = [str(i + 1) for i in range(n)]
+    T = 6
+    t = np.arange(T) / 30.0
+    jaw = np.clip(-neutral[:, 1] / 96.0, 0, 1)
+    measured = np.zeros((T, n, 3))
+    measured[..., 1] = -8.0 * np.sin(2 * np.pi * 2 * t)[:, None] * jaw
+    measured[..., 2] = 2.0 * np.cos(2 * np.pi * 3 * t)[:, None] * jaw
+    model = 0.8 * measured
+    return neutral, labels, measured, model
+
+
+def test_face_surface_reproduces_an_affine_displacement_field():
+    neutral = planar_face()
+    M = np.array([[0.02, -0.01, 0.0], [0.03, 0.05, 0.01], [-0.02, 0.04, 0.0]])
+    b = np.array([1.0, -2.0, 0.5])
+    displacement = neutral @ M.T + b
+    X, Y, Z = face_surface(neutral, displacement, grid_n=25)
+    assert X.shape == Y.shape == Z.shape == (25, 25)
+    gx, gy = np.meshgrid(np.linspace(neutral[:, 0].min(), neutral[:, 0].max(), 25),
+                         np.linspace(neutral[:, 1].min(), neutral[:, 1].max(), 25))
+    inside = np.isfinite(X)
+    assert 0.4 < inside.mean() < 0.95
+    assert np.isnan(X[0, 0]) and np.isnan(Z[-1, -1])  # corners are outside the hull
+    base = np.stack([gx, gy, 0.1 * gx + 0.2 * gy + 30.0], axis=-1)
+    expected = base + base @ M.T + b
+    got = np.stack([X, Y, Z], axis=-1)
+    np.testing.assert_allclose(got[inside], expected[inside], atol=1e-5)
+    # The per-frame interpolator used for rendering gives the same surface.
+    fast = _SurfaceInterpolator(neutral, 25)(displacement)
+    np.testing.assert_allclose(fast[..., :3][inside], got[inside], atol=1e-12)
+    np.testing.assert_allclose(fast[..., 3][inside],
+                               np.linalg.norm(expected - base, axis=-1)[inside], atol=1e-5)
+
+
+def test_face_surface_rejects_mismatched_shapes():
+    neutral = planar_face()
+    with pytest.raises(InputError, match="displacement"):
+        face_surface(neutral, np.zeros((3, 3)))
+
+
+def test_render_frames_are_fixed_size_deterministic_and_follow_the_motion(motion):
+    neutral, labels, measured, model = motion
+    frames = render_frames(neutral, measured, model, labels, ["1", "10"], fps=30.0, grid_n=20)
+    assert len(frames) == len(measured)
+    assert all(f.shape == (420, 800, 3) and f.dtype == np.uint8 for f in frames)
+    again = render_frames(neutral, measured, model, labels, ["1", "10"], fps=30.0, grid_n=20)
+    assert all(np.array_equal(a, b) for a, b in zip(frames, again, strict=True))
+    assert not np.array_equal(frames[0], frames[1])  # the face moves
+    # Main markers drawn in red (#EE6677) on both panels.
+    red = np.all(np.abs(frames[0].astype(int) - [0xEE, 0x66, 0x77]) < 8, axis=-1)
+    assert red[:, :380].sum() > 5 and red[:, 380:760].sum() > 5
+    with pytest.raises(InputError, match="Chin"):
+        render_frames(neutral, measured, model, labels, ["Chin"], fps=30.0)
+    with pytest.raises(InputError, match="NaN"):
+        bad = measured.copy()
+        bad[0, 0, 0] = np.nan
+        render_frames(neutral, bad, model, labels, ["1"], fps=30.0)
+
+
+def test_still_frame_is_a_figure(motion):
+    neutral, labels, measured, model = motion
+    fig = still_frame(neutral, measured[2], model[2], labels, ["1", "10"], grid_n=20)
+    assert isinstance(fig, Figure)
+    panels = [ax for ax in fig.axes if ax.name == "3d"]
+    assert [ax.get_title() for ax in panels] == ["measured", "model from k = 2 main markers"]
+    assert all("mm" in ax.get_xlabel() and "mm" in ax.get_zlabel() for ax in panels)
+
+
+def test_frame_indices():
+    idx, fps = frame_indices(361, 120.0, 30.0)
+    assert fps == 30.0 and idx[:3].tolist() == [0, 4, 8] and idx[-1] == 360
+    idx, fps = frame_indices(10, 100.0, 30.0)
+    assert fps == pytest.approx(100 / 3) and idx.tolist() == [0, 3, 6, 9]
+
+
+def test_gif_delays_keep_time():
+    d = _gif_durations_ms(90, 30.0)
+    assert set(d) <= {30, 40} and sum(d) == 3000
+
+
+def _read(path):
+    reader = imageio.get_reader(path)
+    try:
+        return [np.asarray(f) for f in reader.iter_data()], reader.get_meta_data()
+    finally:
+        reader.close()
+
+
+def _sha(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _frames(n=7, h=60, w=90):
+    y, x = np.mgrid[0:h, 0:w]
+    return [np.stack([(x * 3 + 20 * i) % 256, (y * 4) % 256, np.full_like(x, 40 * i % 256)],
+                     axis=-1).astype(np.uint8) for i in range(n)]
+
+
+@pytest.mark.parametrize("suffix", ["gif", "mp4"])
+def test_written_animation_reads_back_and_is_byte_identical(tmp_path, suffix):
+    frames = _frames()
+    a, b = tmp_path / f"a.{suffix}", tmp_path / "sub" / f"b.{suffix}"
+    write_animation(a, frames, fps=30.0)
+    write_animation(b, frames, fps=30.0)
+    assert _sha(a) == _sha(b)
+    write_animation(a, frames, fps=30.0)  # overwrite in place: same bytes again
+    assert _sha(a) == _sha(b)
+    back, meta = _read(a)
+    assert len(back) == len(frames)
+    assert back[0].shape[:2] == (60, 90)
+    if suffix == "gif":
+        with Image.open(a) as im:
+            assert im.n_frames == 7 and im.info["loop"] == 0
+            assert im.info["duration"] == 30
+        # No dithering and a 255-colour palette: these simple frames survive closely.
+        assert np.abs(back[3][..., :3].astype(int) - frames[3]).mean() < 4
+    else:
+        assert meta["fps"] == pytest.approx(30.0)
+        assert np.abs(back[3].astype(int) - frames[3]).mean() < 12  # lossy but close
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"a.{suffix}", "sub"]
+
+
+def test_mp4_pads_odd_sizes(tmp_path):
+    path = tmp_path / "odd.mp4"
+    write_animation(path, _frames(3, 61, 91), fps=10.0)
+    back, _ = _read(path)
+    assert len(back) == 3 and back[0].shape[:2] == (62, 92)
+
+
+def test_write_animation_rejects_bad_input(tmp_path):
+    with pytest.raises(InputError, match="format"):
+        write_animation(tmp_path / "a.avi", _frames(2), fps=10.0)
+    with pytest.raises(InputError, match="frame 1"):
+        write_animation(tmp_path / "a.gif", [_frames(1)[0], _frames(1, 10, 10)[0]], fps=10.0)
+    with pytest.raises(InputError, match="no frames"):
+        write_animation(tmp_path / "a.gif", [], fps=10.0)
+    assert list(tmp_path.iterdir()) == []  # nothing half-written left behind

@@ -1,0 +1,315 @@
+"""Figures: structure, labelled axes, and the numbers they draw against independent references."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+import pytest  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+from scipy.linalg import qr  # noqa: E402
+
+from facemotion.errors import InputError  # noqa: E402
+from facemotion.plots.errors import plot_error_curves, plot_trajectory  # noqa: E402
+from facemotion.plots.facemap import interpolate_at, interpolate_field  # noqa: E402
+from facemotion.plots.gaps import plot_gaps, runs  # noqa: E402
+from facemotion.plots.markers import plot_markers  # noqa: E402
+from facemotion.plots.rank import plot_r_values  # noqa: E402
+from facemotion.plots.regions import (  # noqa: E402
+    orthogonal_direction_coefficients,
+    plot_orthogonal_directions,
+    plot_region_maps,
+    region_coefficients,
+)
+from facemotion.plots.selection import plot_selection_agreement, selection_counts  # noqa: E402
+from facemotion.plots.sweep import plot_sentence_sweep  # noqa: E402
+from facemotion.provenance import figure_bytes  # noqa: E402
+
+
+def face_layout(n_rings=4, per_ring=8):
+    """A face-like layout: a centre marker and rings of markers on ellipses (mm)."""
+    pts = [(0.0, 0.0)]
+    for r in range(1, n_rings + 1):
+        a = np.linspace(0, 2 * np.pi, per_ring + 2 * r, endpoint=False) + 0.3 * r
+        pts += list(zip(18.0 * r * np.cos(a), 24.0 * r * np.sin(a), strict=True))
+    xy = np.array(pts)
+    z = 60.0 - 0.004 * (xy[:, 0] ** 2 + 0.5 * xy[:, 1] ** 2)
+    neutral = np.column_stack([xy, z])
+    return neutral, [str(i + 1) for i in range(len(neutral))]
+
+
+@pytest.fixture(scope="module")
+def face():
+    return face_layout()
+
+
+@pytest.fixture(scope="module")
+def qr_case(face):
+    neutral, labels = face
+    rng = np.random.default_rng(1)
+    T = 80
+    # Three latent motions spread smoothly over the face, plus small noise.
+    basis = np.stack([np.exp(-((neutral[:, 0] - cx) ** 2 + (neutral[:, 1] - cy) ** 2) / 900)
+                      for cx, cy in ((0, -60), (40, 40), (-40, 40))])
+    A = np.kron(rng.standard_normal((T, 3)), np.ones((3, 1))) @ basis
+    A += 0.01 * rng.standard_normal(A.shape)
+    _, R, piv = qr(A, mode="economic", pivoting=True)
+    order = [labels[i] for i in piv]
+    return A, R, piv, order
+
+
+def _data_axes(fig):
+    return [ax for ax in fig.axes if ax.get_label() != "<colorbar>" and ax.axison]
+
+
+# ---------------------------------------------------------------- interpolation over the face
+
+
+def test_cubic_interpolation_reproduces_a_plane_and_is_nan_outside_the_hull(face):
+    neutral, _ = face
+    xy = neutral[:, :2]
+    plane = 2.0 * xy[:, 0] - 3.0 * xy[:, 1] + 5.0
+    gx, gy, z = interpolate_field(xy, plane, grid_n=60)
+    inside = np.isfinite(z)
+    assert 0.4 < inside.mean() < 0.95  # an ellipse-ish hull inside its bounding box
+    # Clough-Tocher reproduces linear fields; its iterative gradient estimate stops at a
+    # relative tolerance of 1e-6, hence ~1e-6 mm on a field spanning ~500.
+    np.testing.assert_allclose(z[inside], 2.0 * gx[inside] - 3.0 * gy[inside] + 5.0,
+                               atol=1e-5)
+    assert np.isnan(z[0, 0]) and np.isnan(z[-1, -1])  # bounding-box corners: outside
+    assert gx.min() == xy[:, 0].min() and gy.max() == xy[:, 1].max()
+
+
+def test_region_coefficients_and_field_at_main_markers(face):
+    neutral, labels = face
+    mains = ["1", "5", "20"]
+    secondary = [s for s in labels if s not in mains]
+    X = pd.DataFrame(np.linspace(-0.5, 0.9, 3 * len(secondary)).reshape(3, -1),
+                     index=mains, columns=secondary)
+    C = region_coefficients(labels, X)
+    assert C.shape == (3, len(labels))
+    for i, m in enumerate(mains):
+        assert C[i, labels.index(m)] == 1.0
+        for other in mains:
+            if other != m:
+                assert C[i, labels.index(other)] == 0.0
+        for s in secondary[:5]:
+            assert C[i, labels.index(s)] == X.loc[m, s]
+    # The interpolated field of main marker i is 1 at its own position and 0 at the others'.
+    for i, m in enumerate(mains):
+        at = interpolate_at(neutral, C[i], neutral[[labels.index(x) for x in mains]])
+        np.testing.assert_allclose(at, [1.0 if x == m else 0.0 for x in mains], atol=1e-9)
+
+
+def test_region_maps_figure(face):
+    neutral, labels = face
+    mains = ["1", "5", "20", "33"]
+    secondary = [s for s in labels if s not in mains]
+    X = pd.DataFrame(np.cos(np.arange(4 * len(secondary))).reshape(4, -1), index=mains,
+                     columns=secondary)
+    fig = plot_region_maps(neutral, labels, X, grid_n=40)
+    assert isinstance(fig, Figure)
+    panels = [ax for ax in _data_axes(fig) if ax.get_title()]
+    assert [ax.get_title() for ax in panels] == [f"main marker {m}" for m in mains]
+    assert any("colorbar" in ax.get_label() for ax in fig.axes)
+    assert all("mm" in ax.get_xlabel() for ax in panels if ax.get_xlabel())
+    assert any("mm" in ax.get_ylabel() for ax in panels)
+    # The main marker of each panel is labelled on it.
+    for ax, m in zip(panels, mains, strict=True):
+        assert m in [t.get_text() for t in ax.texts]
+    # Deterministic rendering.
+    assert figure_bytes(fig, "png") == figure_bytes(plot_region_maps(neutral, labels, X,
+                                                                     grid_n=40), "png")
+
+
+def test_region_maps_name_unknown_markers(face):
+    neutral, labels = face
+    X = pd.DataFrame([[0.5] * (len(labels) - 1)], index=["Chin"], columns=labels[1:])
+    with pytest.raises(InputError, match="Chin"):
+        plot_region_maps(neutral, labels, X)
+
+
+def test_orthogonal_directions_match_an_unpivoted_qr(face, qr_case):
+    neutral, labels = face
+    A, R, piv, order = qr_case
+    C = orthogonal_direction_coefficients(R, order, labels, n_pivots=4)
+    # Reference: A P = Q R, so R[i, j] / R[i, i] = (q_i . a_j) / (q_i . a_pivot_i).
+    Q, _ = np.linalg.qr(A[:, piv])
+    for i in range(4):
+        ref = (Q[:, i] @ A) / (Q[:, i] @ A[:, piv[i]])
+        np.testing.assert_allclose(C[i], ref, atol=1e-8)
+        assert C[i, piv[i]] == pytest.approx(1.0)
+        for earlier in piv[:i]:
+            assert abs(C[i, earlier]) < 1e-9
+    fig = plot_orthogonal_directions(neutral, labels, R, order, n_pivots=4, grid_n=40)
+    titles = [ax.get_title() for ax in _data_axes(fig) if ax.get_title()]
+    assert titles == [f"q{i + 1}: pivot {order[i]}" for i in range(4)]
+
+
+# ---------------------------------------------------------------- rank, sweep, errors
+
+
+def _r_table(order, scale=1.0):
+    n = len(order)
+    r_rms = scale * np.geomspace(5.0, 0.2, n)
+    return pd.DataFrame({"order": np.arange(1, n + 1), "marker": order, "r": r_rms * 10,
+                         "r_rms": r_rms})
+
+
+def test_r_values_figure(face):
+    _, labels = face
+    t1, t2 = _r_table(labels), _r_table(labels[::-1], 1.5)
+    fig = plot_r_values({"S1": t1, "S2": t2}, tolerances=(0.25, 0.5, 1.0))
+    (ax,) = fig.axes
+    assert ax.get_yscale() == "log"
+    assert "mm" in ax.get_ylabel() and "order" in ax.get_xlabel()
+    assert len(ax.get_lines()) == 2 + 3  # two datasets and three tolerance lines
+    dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+    assert sorted(ln.get_ydata()[0] for ln in dashed) == [0.25, 0.5, 1.0]
+    np.testing.assert_allclose(ax.get_lines()[0].get_ydata(), t1["r_rms"])
+    texts = {t.get_text() for t in ax.texts}
+    # The last three pivots below 0.5 mm of each dataset are annotated, earlier ones are not.
+    for t in (t1, t2):
+        below = t[t["r_rms"] < 0.5]["marker"].tolist()
+        assert set(below[-3:]) <= texts
+    assert len(ax.texts) == 3 + 2 * 3  # tolerance labels, three annotations per dataset
+    n = len(labels)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [f"S1 ({n} markers)",
+                                                                   f"S2 ({n} markers)"]
+
+
+def test_sentence_sweep_figure():
+    rows = [{"n_sentences": n, "order": o, "marker": f"m{o}" if n > 2 else f"x{o}",
+             "r_rms": 10.0 / o + 1.0 / n} for n in range(1, 6) for o in range(1, 15)]
+    fig = plot_sentence_sweep(pd.DataFrame(rows))
+    (ax,) = fig.axes
+    assert len(ax.get_lines()) == 12  # only the first 12 pivots
+    legend = fig.legends[0]
+    assert [t.get_text() for t in legend.get_texts()] == [f"{o}: m{o}" for o in range(1, 13)]
+    assert "sentences" in ax.get_xlabel() and "mm" in ax.get_ylabel()
+    np.testing.assert_allclose(ax.get_lines()[0].get_xdata(), [1, 2, 3, 4, 5])
+    with pytest.raises(InputError, match="r_rms"):
+        plot_sentence_sweep(pd.DataFrame(rows).drop(columns="r_rms"))
+
+
+def test_error_curves_figure():
+    k = np.arange(1, 11)
+    a = pd.DataFrame({"k": k, "mean_abs_error_mm": 2.0 / k, "mean_rel_error": 0.5 / k,
+                      "median_abs_error_mm": 1.5 / k, "max_abs_error_mm": 6.0 / k})
+    b = a[["k", "mean_abs_error_mm", "mean_rel_error"]].assign(mean_abs_error_mm=3.0 / k)
+    fig = plot_error_curves({"S1": a, "AnimFace": b})
+    ax_abs, ax_rel = fig.axes
+    assert "mm" in ax_abs.get_ylabel() and "k" in ax_abs.get_xlabel()
+    assert "relative" in ax_rel.get_ylabel() and "k" in ax_rel.get_xlabel()
+    assert len(ax_abs.get_lines()) == 4  # S1 mean, median, max; AnimFace mean
+    assert len(ax_rel.get_lines()) == 2
+    np.testing.assert_allclose(ax_rel.get_lines()[1].get_ydata(), 0.5 / k)
+    with pytest.raises(InputError, match="AnimFace"):
+        plot_error_curves({"AnimFace": b.drop(columns="mean_rel_error")})
+
+
+def test_trajectory_figure():
+    t = np.arange(50) / 120.0
+    measured = np.column_stack([np.sin(t), np.cos(t), t])
+    predicted = measured + 0.1
+    fig = plot_trajectory(t, measured, predicted, marker="Chin", sentence="s03", k=10)
+    axes = fig.axes
+    assert len(axes) == 3
+    for a, ax in enumerate(axes):
+        meas, pred = ax.get_lines()
+        np.testing.assert_allclose(meas.get_ydata(), measured[:, a])
+        np.testing.assert_allclose(pred.get_ydata(), predicted[:, a])
+        assert "(mm)" in ax.get_ylabel()
+    assert axes[-1].get_xlabel() == "time (s)"
+    assert "Chin" in fig.get_suptitle() and "s03" in fig.get_suptitle()
+    with pytest.raises(InputError, match="Chin"):
+        plot_trajectory(t, measured[:10], predicted, marker="Chin", sentence="s03", k=10)
+
+
+# ---------------------------------------------------------------- gaps, markers, selection
+
+
+def test_runs():
+    assert runs(np.array([0, 1, 1, 0, 1, 0, 0, 1], bool)) == [(1, 3), (4, 5), (7, 8)]
+    assert runs(np.zeros(4, bool)) == []
+
+
+def _drawn_mask(ax, gid, t, dt, n_rows):
+    """Samples covered by the bars of one kind, per raster row."""
+    drawn = np.zeros((t.size, n_rows), bool)
+    for coll in ax.collections:
+        if coll.get_gid() != gid:
+            continue
+        for path in coll.get_paths():
+            v = path.vertices
+            x0, x1 = v[:, 0].min(), v[:, 0].max()
+            row = int(round(v[:, 1].mean()))
+            drawn[(t >= x0 - dt / 2) & (t + dt / 2 <= x1 + 1e-9), row] = True
+    return drawn
+
+
+@pytest.mark.parametrize("n_markers", [6, 40])
+def test_gap_raster_draws_exactly_the_flagged_samples(n_markers):
+    rate = 100.0
+    t = np.arange(300) / rate
+    labels = [f"L{i:03d}" for i in range(n_markers)]
+    missing = np.zeros((300, n_markers), bool)
+    filled = np.zeros((300, n_markers), bool)
+    missing[10:40, 1] = True
+    filled[10:30, 1] = True  # 30-39 left missing
+    missing[123, 3] = True  # a single missing frame
+    filled[200:205, 4] = True
+    missing[299, 4] = True  # last frame
+    fig = plot_gaps(t, missing, filled, labels, sentence_bounds=[0.0, 1.5])
+    (ax,) = fig.axes
+    shown = [tick.get_text() for tick in ax.get_yticklabels()]
+    if n_markers > 30:
+        assert shown == ["L001", "L003", "L004"]
+        assert f"{n_markers - 3} markers with no missing samples not shown" in ax.get_title()
+    else:
+        assert shown == labels
+        assert "not shown" not in ax.get_title()
+    rows = [labels.index(s) for s in shown]
+    got_missing = _drawn_mask(ax, "missing", t, 1 / rate, len(shown))
+    got_filled = _drawn_mask(ax, "filled", t, 1 / rate, len(shown))
+    np.testing.assert_array_equal(got_missing, (missing & ~filled)[:, rows])
+    np.testing.assert_array_equal(got_filled, filled[:, rows])
+    assert sum(1 for ln in ax.get_lines() if ln.get_xdata()[0] == 1.5) == 1
+
+
+def test_gap_raster_with_nothing_missing():
+    t = np.arange(10) / 10.0
+    none = np.zeros((10, 50), bool)
+    fig = plot_gaps(t, none, none, [str(i) for i in range(50)])
+    ax = fig.axes[0]
+    assert "50 markers with no missing samples not shown" in ax.get_title()
+    assert any("no missing or filled samples" in x.get_text() for x in ax.texts)
+
+
+def test_markers_figure(face):
+    neutral, labels = face
+    fig = plot_markers(neutral, labels, highlight=["1", "7"])
+    front, side = fig.axes[:2]
+    assert sorted(t.get_text() for t in front.texts) == sorted(labels)
+    assert "mm" in front.get_xlabel() and "mm" in front.get_ylabel() and "mm" in side.get_xlabel()
+    with pytest.raises(InputError, match="Nose"):
+        plot_markers(neutral, labels, highlight=["Nose"])
+
+
+def test_selection_agreement():
+    table = pd.DataFrame({"order": [1, 2, 3, 4],
+                          "S1": ["40", "12", "7", "3"],
+                          "S2": ["12", "40", "9", "7"],
+                          "GRID": ["40", "5", "12", ""]})
+    c = selection_counts(table, k=2)
+    assert c["marker"].tolist() == ["40", "12", "5"]
+    assert c["count"].tolist() == [3, 2, 1]
+    assert c.loc[0, "S2"] == 2 and np.isnan(c.loc[2, "S1"])
+    c3 = selection_counts(table, k=3)
+    assert c3.set_index("marker").loc["12", "count"] == 3
+    fig = plot_selection_agreement(table, k=3)
+    heat, bar = fig.axes[:2]
+    assert [t.get_text() for t in heat.get_xticklabels()] == ["S1", "S2", "GRID"]
+    assert [t.get_text() for t in heat.get_yticklabels()] == c3["marker"].tolist()
+    assert [p.get_width() for p in bar.patches] == c3["count"].tolist()
+    assert heat.get_xlabel() and heat.get_ylabel() and bar.get_xlabel()
