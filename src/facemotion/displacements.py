@@ -1,0 +1,249 @@
+"""The displacement matrix A (Lucero & Munhall 2008) and its npz file.
+
+Each sentence's positions minus that sentence's neutral pose are stacked frame-major:
+row 3*f + c of A is axis c (x, y, z) of frame f of the concatenated sentences, column j is
+marker ``labels[j]``, in mm.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from facemotion.errors import InputError
+from facemotion.recording import Recording
+
+NEUTRAL_MODES = ("first_frame", "mean_first_10")
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed entry date: byte-identical files on rerun
+
+
+@dataclass
+class Displacements:
+    A: np.ndarray            # (3F, n) mm; rows frame-major: row 3*f + c is axis c of frame f
+    labels: list[str]        # n marker labels (strings)
+    sentences: list[str]     # sentence (take) names in order
+    row_sentence: np.ndarray  # (3F,) int, index into sentences
+    row_frame: np.ndarray    # (3F,) int, frame number within its sentence
+    rate: float              # Hz
+    fill_mask: np.ndarray    # (F, n) bool, True where the sample was filled
+    head_residual: np.ndarray  # (F,) mm, RMS residual of the head fit (0 when no head markers)
+    neutral: np.ndarray      # (n, 3) mm, neutral pose (mean of the sentences' neutral poses)
+    sentence_neutral: np.ndarray | None = field(default=None)  # (S, n, 3) each one's neutral
+
+    def __post_init__(self) -> None:
+        self.labels = [str(x) for x in self.labels]
+        self.sentences = [str(x) for x in self.sentences]
+        self.A = np.asarray(self.A, dtype=float)
+        self.row_sentence = np.asarray(self.row_sentence, dtype=np.int64)
+        self.row_frame = np.asarray(self.row_frame, dtype=np.int64)
+        self.fill_mask = np.asarray(self.fill_mask, dtype=bool)
+        self.head_residual = np.asarray(self.head_residual, dtype=float)
+        self.neutral = np.asarray(self.neutral, dtype=float)
+        self.rate = float(self.rate)
+        rows, n = self.A.shape
+        F = rows // 3
+        if rows % 3 or len(self.labels) != n or self.row_sentence.shape != (rows,) \
+                or self.row_frame.shape != (rows,) or self.fill_mask.shape != (F, n) \
+                or self.head_residual.shape != (F,) or self.neutral.shape != (n, 3):
+            raise InputError(f"displacements: inconsistent shapes: A {self.A.shape}, "
+                             f"{len(self.labels)} labels, row_sentence {self.row_sentence.shape}"
+                             f", row_frame {self.row_frame.shape}, fill_mask "
+                             f"{self.fill_mask.shape}, head_residual {self.head_residual.shape}"
+                             f", neutral {self.neutral.shape}")
+        if self.sentence_neutral is not None:
+            self.sentence_neutral = np.asarray(self.sentence_neutral, dtype=float)
+            if self.sentence_neutral.shape != (len(self.sentences), n, 3):
+                raise InputError(f"displacements: sentence_neutral shape "
+                                 f"{self.sentence_neutral.shape} != "
+                                 f"({len(self.sentences)}, {n}, 3)")
+
+    @property
+    def n_frames(self) -> int:
+        return self.A.shape[0] // 3
+
+    def frames(self) -> np.ndarray:
+        """(F, n, 3) displacements, the inverse of the frame-major layout of A."""
+        return self.A.reshape(self.n_frames, 3, -1).transpose(0, 2, 1)
+
+    def rows_for(self, sentence_indices) -> np.ndarray:
+        """Bool mask over the rows of A of the given sentences (indices into ``sentences``)."""
+        idx = self._check_indices(sentence_indices)
+        return np.isin(self.row_sentence, idx)
+
+    def subset(self, sentence_indices) -> Displacements:
+        """Only these sentences, in the given order (re-indexed 0..k-1)."""
+        idx = self._check_indices(sentence_indices)
+        rows = np.concatenate([np.flatnonzero(self.row_sentence == s) for s in idx]
+                              ) if idx else np.zeros(0, dtype=np.int64)
+        frames = rows[::3] // 3
+        new_sent = np.concatenate([np.full(np.sum(self.row_sentence == s), k, dtype=np.int64)
+                                   for k, s in enumerate(idx)]) if idx else rows
+        if self.sentence_neutral is not None and idx:
+            sn = self.sentence_neutral[idx]
+            neutral = sn.mean(axis=0)
+        else:
+            sn, neutral = None, self.neutral.copy()
+        return Displacements(
+            A=self.A[rows], labels=list(self.labels), sentences=[self.sentences[s] for s in idx],
+            row_sentence=new_sent, row_frame=self.row_frame[rows], rate=self.rate,
+            fill_mask=self.fill_mask[frames], head_residual=self.head_residual[frames],
+            neutral=neutral, sentence_neutral=sn)
+
+    def _check_indices(self, sentence_indices) -> list[int]:
+        idx = [int(i) for i in np.atleast_1d(np.asarray(sentence_indices, dtype=np.int64))]
+        bad = [i for i in idx if not 0 <= i < len(self.sentences)]
+        if bad:
+            raise InputError(f"displacements: sentence index(es) {bad} out of range "
+                             f"(have {len(self.sentences)} sentences)")
+        if len(set(idx)) != len(idx):
+            raise InputError(f"displacements: sentence index(es) repeated in {idx}")
+        return idx
+
+
+def _neutral_pose(rec: Recording, neutral: str) -> np.ndarray:
+    if neutral == "first_frame":
+        return rec.points[0].copy()
+    return rec.points[:10].mean(axis=0)
+
+
+def _label_difference(rec: Recording, first: Recording) -> str:
+    extra = [x for x in rec.labels if x not in set(first.labels)]
+    lacking = [x for x in first.labels if x not in set(rec.labels)]
+    what = []
+    if extra:
+        what.append(f"extra markers {', '.join(extra[:10])}")
+    if lacking:
+        what.append(f"missing markers {', '.join(lacking[:10])}")
+    if not what:
+        moved = [a for a, b in zip(rec.labels, first.labels, strict=True) if a != b]
+        what.append(f"same markers in a different order (first differing: "
+                    f"{', '.join(moved[:5])})")
+    return "; ".join(what)
+
+
+def build_displacements(recordings: list[Recording], names: list[str],
+                        neutral: str = "first_frame", head_residuals=None) -> Displacements:
+    """Stack the sentences' displacements from their neutral poses into A.
+
+    neutral: "first_frame" (each sentence's first frame) or "mean_first_10" (mean of its
+    first 10 frames). head_residuals: per-sentence (frames,) arrays from
+    :func:`facemotion.head_motion.align_head`, or None (zeros). All recordings must share
+    labels (same order) and rate and have no NaN left (fill gaps first).
+    """
+    if neutral not in NEUTRAL_MODES:
+        raise InputError(f"neutral setting must be one of {', '.join(NEUTRAL_MODES)}, "
+                         f"got {neutral!r}")
+    recordings = list(recordings)
+    names = [str(x) for x in names]
+    if not recordings:
+        raise InputError("displacements: no recordings given")
+    if len(names) != len(recordings):
+        raise InputError(f"displacements: {len(names)} names for {len(recordings)} recordings")
+    if len(set(names)) != len(names):
+        raise InputError(f"displacements: sentence names repeated: {names}")
+    if head_residuals is None:
+        head_residuals = [np.zeros(r.n_frames) for r in recordings]
+    head_residuals = [np.asarray(h, dtype=float) for h in head_residuals]
+    if len(head_residuals) != len(recordings):
+        raise InputError(f"displacements: {len(head_residuals)} head residual arrays for "
+                         f"{len(recordings)} recordings")
+    first = recordings[0]
+    blocks, neutrals, rs, rf = [], [], [], []
+    for s, (rec, name, hr) in enumerate(zip(recordings, names, head_residuals, strict=True)):
+        src = rec.source or name
+        if rec.labels != first.labels:
+            raise InputError(f"{src}: marker labels differ from {first.source or names[0]}: "
+                             + _label_difference(rec, first))
+        if rec.rate != first.rate:
+            raise InputError(f"{src}: frame rate {rec.rate} Hz differs from "
+                             f"{first.source or names[0]} ({first.rate} Hz)")
+        if rec.n_frames == 0:
+            raise InputError(f"{src}: recording has no frames")
+        if hr.shape != (rec.n_frames,):
+            raise InputError(f"{src}: head residual has shape {hr.shape}, expected "
+                             f"({rec.n_frames},)")
+        bad = ~np.isfinite(rec.points).all(axis=2)
+        if bad.any():
+            f, j = (int(x) for x in np.argwhere(bad)[0])  # row-major: earliest frame
+            raise InputError(f"{src}: marker {rec.labels[j]!r} is missing at t = "
+                             f"{f / rec.rate:.3f} s (frame {f}); fill gaps first")
+        n0 = _neutral_pose(rec, neutral)
+        neutrals.append(n0)
+        D = rec.points - n0  # (F_s, n, 3)
+        blocks.append(D.transpose(0, 2, 1).reshape(3 * rec.n_frames, rec.n_markers))
+        rs.append(np.full(3 * rec.n_frames, s, dtype=np.int64))
+        rf.append(np.repeat(np.arange(rec.n_frames, dtype=np.int64), 3))
+    sn = np.stack(neutrals)
+    return Displacements(
+        A=np.concatenate(blocks), labels=list(first.labels), sentences=names,
+        row_sentence=np.concatenate(rs), row_frame=np.concatenate(rf), rate=first.rate,
+        fill_mask=np.concatenate([r.filled for r in recordings]),
+        head_residual=np.concatenate(head_residuals), neutral=sn.mean(axis=0),
+        sentence_neutral=sn)
+
+
+def _npy_bytes(a: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, np.array(a, order="C"), allow_pickle=False)
+    return buf.getvalue()
+
+
+def save_displacements(path, d: Displacements) -> None:
+    """Write ``d`` as an npz (deflate; fixed entry dates, so reruns are byte-identical)."""
+    arrays = {
+        "A": d.A, "labels": np.array(d.labels, dtype=str),
+        "sentences": np.array(d.sentences, dtype=str),
+        "row_sentence": d.row_sentence.astype(np.int64),
+        "row_frame": d.row_frame.astype(np.int64), "rate": np.array(d.rate),
+        "fill_mask": d.fill_mask.astype(bool), "head_residual": d.head_residual,
+        "neutral": d.neutral,
+    }
+    if d.sentence_neutral is not None:
+        arrays["sentence_neutral"] = d.sentence_neutral
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh, zipfile.ZipFile(fh, "w") as zf:
+            for name, a in arrays.items():
+                info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_DATE)
+                info.compress_type = zipfile.ZIP_DEFLATED
+                info.external_attr = 0o644 << 16
+                zf.writestr(info, _npy_bytes(a), compresslevel=6)
+        os.replace(tmp, target)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def load_displacements(path) -> Displacements:
+    """Read a file written by :func:`save_displacements`."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: displacements file not found")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as e:
+        raise InputError(f"{p}: cannot read displacements npz ({e})") from None
+    need = ["A", "labels", "sentences", "row_sentence", "row_frame", "rate", "fill_mask",
+            "head_residual", "neutral"]
+    lacking = [k for k in need if k not in data]
+    if lacking:
+        raise InputError(f"{p}: displacements file lacks array(s) {', '.join(lacking)}")
+    if np.size(data["rate"]) != 1:
+        raise InputError(f"{p}: 'rate' must be a single number, got shape {data['rate'].shape}")
+    return Displacements(
+        A=data["A"], labels=[str(x) for x in data["labels"]],
+        sentences=[str(x) for x in data["sentences"]], row_sentence=data["row_sentence"],
+        row_frame=data["row_frame"], rate=float(np.ravel(data["rate"])[0]),
+        fill_mask=data["fill_mask"],
+        head_residual=data["head_residual"], neutral=data["neutral"],
+        sentence_neutral=data.get("sentence_neutral"))
