@@ -104,7 +104,15 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         if complete.size == 0:
             raise InputError(f"{paths[0]}: no frame has all head markers "
                              f"{', '.join(head_markers)}")
-        reference = ref_rec.points[complete[0]]
+        # Reference: the median head configuration over all takes (one Procrustes step:
+        # align every frame to the first take's first complete frame, then take the median),
+        # so that one odd first frame (as in tracker output) or a brow raise that moves a
+        # forehead marker does not bias every other frame.
+        first = ref_rec.points[complete[0]]
+        stacked = np.concatenate([
+            align_head(rec, list(head_markers), reference=first)[0]
+            .select(list(head_markers)).points for rec in recs])
+        reference = np.nanmedian(stacked, axis=0)
         aligned = []
         for rec in recs:
             a, res = align_head(rec, list(head_markers), reference=reference)
