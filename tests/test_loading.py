@@ -1,0 +1,99 @@
+"""One path for every recording: read -> head alignment -> gaps -> displacements."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from facemotion.errors import InputError
+from facemotion.loading import load_dataset, split_roles
+from facemotion.readers import write_csv
+from facemotion.recording import Recording
+
+HEAD = ["h1", "h2", "h3", "h4"]
+
+
+def make_take(path, seed, n_frames=120, labels=None, drop=None):
+    """A rigidly moving head (4 head markers) and 5 face markers with their own motion."""
+    rng = np.random.default_rng(seed)
+    labels = labels or HEAD + ["m1", "m2", "m3", "m4", "m5"]
+    neutral = np.array([[0, 100, 0], [60, 90, 10], [-60, 90, 10], [0, 60, 40],
+                        [0, 0, 50], [25, 0, 45], [-25, 0, 45], [0, -20, 50], [0, -60, 40]],
+                       float)[: len(labels)]
+    t = np.arange(n_frames) / 120.0
+    face = np.zeros((n_frames, len(labels), 3))
+    face[:, 4:, 1] = 3 * np.sin(2 * np.pi * 4 * t)[:, None] * rng.uniform(0.5, 1.5, len(labels) - 4)
+    local = neutral + face
+    rot = Rotation.from_rotvec(np.deg2rad(2) * np.sin(2 * np.pi * t)[:, None] * [1, 0.5, 0.2])
+    pts = np.stack([r.apply(local[i]) for i, r in enumerate(rot)]) + [5, 0, 2] * t[:, None, None]
+    if drop is not None:
+        pts[drop[1]:drop[2], labels.index(drop[0])] = np.nan
+    rec = Recording(labels, pts, 120.0, str(path))
+    write_csv(path, rec)
+    return local - local[0]
+
+
+def test_head_motion_removed_and_roles_ordered(tmp_path):
+    files = [tmp_path / f"s{i}.csv" for i in range(3)]
+    truths = [make_take(f, i) for i, f in enumerate(files)]
+    out = load_dataset([str(f) for f in files], "csv", head_markers=HEAD, exclude_markers=HEAD,
+                       train=[2, 0], heldout=[1])
+    d = out.displacements
+    assert d.labels == ["m1", "m2", "m3", "m4", "m5"]
+    assert d.sentences == ["s2", "s0", "s1"]
+    assert list(out.sentences["role"]) == ["train", "train", "heldout"]
+    # rows of sentence s2 are the displacements of take 2 (head motion removed, noiseless)
+    rows = d.rows_for([0])
+    expected = truths[2][:, 4:, :].reshape(-1, 3)
+    got = d.A[rows].reshape(-1, 3, 5).transpose(0, 2, 1).reshape(-1, 3)
+    assert np.max(np.abs(got - expected)) < 1e-4  # CSV text keeps ~1e-6 mm
+    assert out.sentences["head_fit_max_mm"].max() < 1e-4
+    train, held = split_roles(d, out.sentences)
+    assert train.sentences == ["s2", "s0"] and held.sentences == ["s1"]
+
+
+def test_gap_is_filled_and_flagged(tmp_path):
+    f = tmp_path / "s0.csv"
+    make_take(f, 0, drop=("m2", 30, 36))
+    out = load_dataset([str(f)], "csv", head_markers=HEAD, exclude_markers=HEAD, train=[0],
+                       heldout=[])
+    j = out.displacements.labels.index("m2")
+    assert out.missing[30:36, j].all() and out.missing.sum() == 6
+    assert out.filled[30:36, j].all() and out.filled.sum() == 6
+    row = out.gap_report.set_index("marker").loc["m2"]
+    assert row["missing_frames"] == 6 and row["filled_frames"] == 6
+    assert row["fill_method"] == "cubic"
+
+
+def test_take_with_different_markers_names_the_file(tmp_path):
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    make_take(a, 0)
+    make_take(b, 1, labels=HEAD + ["m1", "m2", "m3", "m4", "mX"])
+    with pytest.raises(InputError, match=r"b\.csv: marker labels differ .*extra markers \['mX'\]"):
+        load_dataset([str(a), str(b)], "csv", head_markers=HEAD, train=[0, 1], heldout=[])
+
+
+@pytest.mark.parametrize("head,needle", [
+    (["h1", "h2"], "at least 3 are needed"),
+    (["h1", "h2", "hZ"], "hZ"),
+])
+def test_bad_head_markers(tmp_path, head, needle):
+    f = tmp_path / "a.csv"
+    make_take(f, 0)
+    with pytest.raises(InputError, match=needle):
+        load_dataset([str(f)], "csv", head_markers=head, train=[0], heldout=[])
+
+
+def test_unknown_excluded_marker_and_missing_file(tmp_path):
+    f = tmp_path / "a.csv"
+    make_take(f, 0)
+    with pytest.raises(InputError, match="marker 'nope'"):
+        load_dataset([str(f)], "csv", exclude_markers=["nope"], train=[0], heldout=[])
+    with pytest.raises(InputError, match="missing.csv"):
+        load_dataset([str(tmp_path / "missing.csv")], "csv", train=[0], heldout=[])
+
+
+def test_marker_missing_everywhere_is_an_error(tmp_path):
+    f = tmp_path / "a.csv"
+    make_take(f, 0, drop=("m3", 0, 120))
+    with pytest.raises(InputError, match="m3"):
+        load_dataset([str(f)], "csv", head_markers=HEAD, train=[0], heldout=[])
