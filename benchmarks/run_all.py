@@ -1,0 +1,16 @@
+"""All benchmarks: the QR analysis against its naive baselines, then the full study's time.
+
+    python benchmarks/run_all.py [--quick]
+"""
+
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+if __name__ == "__main__":
+    quick = ["--quick"] if "--quick" in sys.argv[1:] else []
+    rc = subprocess.call([sys.executable, str(HERE / "bench_qr.py"), *quick])
+    rc |= subprocess.call([sys.executable, str(HERE / "bench_study.py")])
+    sys.exit(rc)
