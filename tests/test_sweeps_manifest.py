@@ -1,0 +1,90 @@
+"""Sweep grids, cross-subject counts, the manifest and the script adapter's error handling."""
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from facemotion.errors import InputError
+from facemotion.manifest import build_manifest
+from facemotion.provenance import Provenance, write_table
+from facemotion.sweeps import expand_grid, settled_after, top_k_frequency
+
+
+def test_expand_grid_is_the_cartesian_product_in_order():
+    pts = expand_grid({"tolerance_mm": [0.25, 0.5], "k": [5, 10, 15]})
+    assert len(pts) == 6
+    assert pts[0] == {"tolerance_mm": 0.25, "k": 5, "train_sentences": None}
+    assert pts[-1]["tolerance_mm"] == 0.5 and pts[-1]["k"] == 15
+    assert expand_grid({}) == [{"tolerance_mm": 0.5, "k": 10, "train_sentences": None}]
+
+
+def test_settled_after_finds_the_last_excursion():
+    rows = []
+    values = {1: [5.0, 2.0], 2: [3.0, 2.5], 3: [3.05, 2.02], 4: [3.0, 2.0]}
+    for n, vals in values.items():
+        for order, v in enumerate(vals, 1):
+            rows.append({"n_sentences": n, "order": order, "marker": str(order), "r_rms": v})
+    sweep = pd.DataFrame(rows)
+    assert settled_after(sweep, 0.05) == 3   # n=2 is 25 % off for order 2
+    assert settled_after(sweep, 0.7) == 1
+
+
+def test_top_k_frequency_counts_datasets():
+    table = pd.DataFrame({"order": [1, 2, 3], "A": ["40", "34", "38"], "B": ["40", "56", "34"]})
+    freq = top_k_frequency(table, k=2).set_index("marker")
+    assert freq.loc["40", "count"] == 2 and freq.loc["40", "fraction"] == 1.0
+    assert freq.loc["34", "count"] == 1 and "38" not in freq.index
+
+
+def test_manifest_lists_outputs_and_detects_tampering(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    df = pd.DataFrame({"order": [1], "marker": ["40"], "r": [1.0], "r_rms": [0.1]})
+    write_table(df, "results/x/qr/r_values.tsv", "r_values", Provenance("rank_markers"))
+    m = build_manifest("results")
+    assert list(m["path"]) == ["results/x/qr/r_values.tsv"]
+    assert m.loc[0, "schema_id"] == "facemotion/r_values"
+    assert m.loc[0, "sidecar"] == "results/x/qr/r_values.meta.json"
+    with open("results/x/qr/r_values.tsv", "a") as f:
+        f.write("tampered\n")
+    with pytest.raises(InputError, match="checksum differs"):
+        build_manifest("results")
+
+
+def test_script_adapter_turns_errors_into_one_line(tmp_path):
+    code = textwrap.dedent(f"""
+        from types import SimpleNamespace
+        from facemotion.errors import InputError
+        from facemotion.snakemake_adapter import run_step
+        sm = SimpleNamespace(rule="demo", log=["{tmp_path}/demo.log"], input=[], params={{}},
+                             wildcards={{}})
+        def main(sm, log, prov):
+            raise InputError("file x.c3d: marker '13' missing in every frame")
+        run_step(sm, main)
+    """)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 1
+    assert proc.stderr.strip() == ("facemotion: demo: file x.c3d: marker '13' missing in "
+                                   "every frame")
+    assert "marker '13'" in (tmp_path / "demo.log").read_text()
+    assert "Traceback" not in proc.stderr
+
+
+def test_sidecar_records_params_and_wildcards(tmp_path):
+    from types import SimpleNamespace
+
+    from facemotion.snakemake_adapter import provenance_for
+
+    f = tmp_path / "in.npz"
+    f.write_bytes(np.zeros(3).tobytes())
+    sm = SimpleNamespace(rule="rank_markers", input=[str(f)],
+                         params={"tolerances_mm": [0.5]}, wildcards={"dataset": "S1"})
+    prov = provenance_for(sm)
+    meta = prov.sidecar("r_values", "1", [])
+    assert meta["config"] == {"params": {"tolerances_mm": [0.5]}, "wildcards": {"dataset": "S1"}}
+    assert meta["inputs"][0]["path"] == str(f)
+    json.dumps(meta)
