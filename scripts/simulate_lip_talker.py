@@ -1,11 +1,9 @@
 """Write the virtual lip talker's tracked points as a TRC file, with its ground truth."""
 
-import io
-
 import numpy as np
 
 from facemotion.lips.virtual import make_virtual_talker
-from facemotion.provenance import write_artifact
+from facemotion.provenance import npz_bytes, write_artifact
 from facemotion.readers import write_trc
 from facemotion.snakemake_adapter import run_step
 
@@ -14,11 +12,10 @@ def main(sm, log, prov):
     spec = sm.params.lip["subject"]
     talker = make_virtual_talker(n_frames=spec.get("frames", 150), seed=spec.get("seed", 0))
     write_trc(sm.output.tracks, talker.recording)
-    buf = io.BytesIO()
-    np.savez(buf, truth=talker.truth, activations=talker.activations.to_numpy(),
-             gestures=np.array(list(talker.activations.columns)),
-             nodes=talker.mesh.nodes, tracked=np.array(talker.tracked_labels))
-    write_artifact(sm.output.truth, buf.getvalue(), "lip_truth", prov)
+    arrays = {"truth": talker.truth, "activations": talker.activations.to_numpy(),
+              "gestures": np.array(list(talker.activations.columns)),
+              "nodes": talker.mesh.nodes, "tracked": np.array(talker.tracked_labels)}
+    write_artifact(sm.output.truth, npz_bytes(arrays), "lip_truth", prov)
     log.info("virtual lip talker: %d frames, %d tracked points", talker.recording.n_frames,
              len(talker.tracked_labels))
 
