@@ -28,12 +28,16 @@ def main(sm, log, prov):
     k = min(p.k, len(held.labels) - 1)
     main_markers = ranking.labels_in_order[:k]
     marker = p.marker
-    if marker is None or marker not in held.labels or marker in main_markers:
-        fallback = ranking.labels_in_order[-1]
-        log.info("trajectory marker %r unavailable or a main marker; using %s", marker, fallback)
-        marker = fallback
     s = min(p.sentence, len(held.sentences)) - 1
     one = held.subset([s])
+    if marker is None or marker not in held.labels or marker in main_markers:
+        # the secondary marker that moves most in this sentence
+        secondary = [m for m in one.labels if m not in main_markers]
+        motion = {m: float(np.sum(one.A[:, one.labels.index(m)] ** 2)) for m in secondary}
+        fallback = max(secondary, key=lambda m: (motion[m], m))
+        log.info("trajectory marker %r unavailable or a main marker at k=%d; using %s, the "
+                 "secondary marker that moves most", marker, k, fallback)
+        marker = fallback
     pred = predict(ranking, k, one.A)
     j = one.labels.index(marker)
     measured = one.A[:, j].reshape(-1, 3)

@@ -91,3 +91,16 @@ def test_bad_settings():
     A[4, 5] = np.nan
     with pytest.raises(InputError, match="m5"):
         find_redundant_markers(A, labels, rs, RATE)
+
+
+def test_without_fill_flags_the_later_column_is_the_copy():
+    """A file carries no fill flags (all False): the later column is reported as the copy,
+    whichever order the pair was scanned in (S1: marker 13 copies 11)."""
+    D, rs, labels = recording(seed=3)
+    a, b = 200, 290
+    D[a:b, :, 13] = D[a:b, :, 11] + np.array([0.0, 4.0, 0.0])
+    no_flags = np.zeros((D.shape[0], 20), dtype=bool)
+    for mask in (None, no_flags):
+        df = find_redundant_markers(to_A(D), labels, rs, RATE, fill_mask=mask)
+        assert len(df) == 1, df
+        assert (df.iloc[0].marker, df.iloc[0].explained_by) == ("m13", "m11")

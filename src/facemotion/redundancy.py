@@ -235,12 +235,12 @@ def find_redundant_markers(
             vj.append(Vs[sel, :, j])
         vi, vj = np.concatenate(vi), np.concatenate(vj)
         src, cpy = j, i
+        fi = fj = 0
         if fill_mask is not None:
             fi, fj = fill_mask[frames, i].sum(), fill_mask[frames, j].sum()
-            if fj > fi:
-                src, cpy, vi, vj = i, j, vj, vi
-        elif i < j:
-            src, cpy, vi, vj = i, j, vj, vi  # later column reported as the copy
+        if fj > fi or (fj == fi and i < j):
+            # the more-filled marker is the copy; with no fill flags to tell, the later column
+            src, cpy, vi, vj = i, j, vj, vi
         coef = float(np.sum(vi * vj) / np.sum(vj * vj))
         resid = float(np.sqrt(np.mean((vi - coef * vj) ** 2) / 2.0))
         names = [
