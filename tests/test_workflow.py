@@ -20,10 +20,14 @@ SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 pytestmark = pytest.mark.workflow
 
 
-def run_snakemake(workdir, *args, check=True):
+def run_snakemake(workdir, *args, check=True, extra_config=None):
+    configs = [str(REPO / "config" / "smoke.yaml")]
+    if extra_config is not None:
+        extra = Path(workdir) / "extra_config.yaml"
+        extra.write_text(extra_config)
+        configs.append(str(extra))
     cmd = SNAKEMAKE + ["-s", str(REPO / "Snakefile"), "--directory", str(workdir),
-                       "--cores", "2", "--configfile", str(REPO / "config" / "smoke.yaml"),
-                       *args]
+                       "--cores", "2", "--configfile", *configs, *args]
     env = dict(os.environ, PYTHONHASHSEED="0")
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if check and proc.returncode != 0:
@@ -87,7 +91,7 @@ def test_nothing_to_do_on_rerun_and_param_change_reruns_only_dependents(smoke_ru
     a, _ = smoke_runs
     proc = run_snakemake(a, "-n")
     assert "Nothing to be done" in proc.stdout + proc.stderr
-    proc = run_snakemake(a, "-n", "--config", "qr={'tolerances_mm': [0.3]}")
+    proc = run_snakemake(a, "-n", extra_config="qr:\n  tolerances_mm: [0.3]\n")
     out = proc.stdout + proc.stderr
     assert "rank_markers" in out and "tabulate_selection" in out
     assert "load_dataset" not in out and "simulate_subject" not in out
@@ -103,7 +107,11 @@ def test_report_builds_with_expected_entries(smoke_runs):
 
 
 def test_bad_config_value_is_rejected_at_parse_time(tmp_path):
-    proc = run_snakemake(tmp_path, "-n", "--config", "qr={'tolerances_mm': [-1]}", check=False)
-    assert proc.returncode != 0
-    assert "tolerances_mm" in proc.stdout + proc.stderr
-    assert not (tmp_path / "results").exists()
+    for bad, name in (("qr:\n  tolerances_mm: [-1]\n", "tolerances_mm"),
+                      ("sweeps:\n  s:\n    k: [0]\n", "k"),
+                      ("sweeps:\n  s:\n    k: [60]\n", "sweeps.s.k"),
+                      ("animation:\n  formt: gif\n", "formt")):
+        proc = run_snakemake(tmp_path, "-n", check=False, extra_config=bad)
+        assert proc.returncode != 0, bad
+        assert name in proc.stdout + proc.stderr, (bad, proc.stderr[-2000:])
+        assert not (tmp_path / "results").exists()
