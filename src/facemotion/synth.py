@@ -65,7 +65,7 @@ REGIONS = {
 }
 SOURCES = ("jaw_open", "lip_protrusion", "left_corner_retraction", "right_corner_retraction",
            "upper_lip_raise", "lower_lip_depression", "left_brow_raise", "right_brow_raise",
-           "left_blink", "right_blink", "cheek_puff")
+           "left_blink", "right_blink", "cheek_raise")
 
 
 def _surface_z(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -85,7 +85,7 @@ class Talker:
     neutral: np.ndarray            # (57, 3) face markers, head coordinates, mm
     head_band: np.ndarray          # (6, 3)
     strengths: np.ndarray          # (K,) source amplitude multipliers
-    local_rms_mm: float = 0.5     # per-axis RMS of the marker-specific skin motion
+    local_rms_mm: float = 0.45     # per-axis RMS of the marker-specific skin motion
 
 
 def make_talker(talker_seed: int = 0, placement_jitter_mm: float = 0.0,
@@ -121,41 +121,46 @@ def influence_fields(neutral: np.ndarray) -> np.ndarray:
     x, y = p[:, 0], p[:, 1]
     n = len(p)
     D = np.zeros((len(SOURCES), n, 3))
-    # jaw opening: everything below the upper lip rotates down and back about the jaw joint,
-    # more the further below; the cheeks stretch a little (negative lobe: they rise slightly)
-    below = 1.0 / (1.0 + np.exp((y + 22.0) / 4.0))
+    # jaw opening: the lower face rotates down and back about the jaw joint (more further
+    # below); the skin of the cheeks stretches with it (a broad, weaker pull), while the
+    # upper cheeks rise slightly (negative lobe)
+    below = 1.0 / (1.0 + np.exp((y + 15.0) / 10.0))
     w = below * (0.85 + 0.15 * np.clip((-30.0 - y) / 55.0, 0.0, 1.0))
-    D[0, :, 1] = -8.0 * w - 0.8 * _lobe(p, 0, -30, 8)
-    D[0, :, 2] = -3.0 * w
-    D[0, :, 1] += 0.6 * _lobe(p, -45, 5, 12) + 0.6 * _lobe(p, 45, 5, 12)
-    # lip protrusion: lips forward and towards the midline
-    m = _lobe(p, 0, -22, 16, 10)
-    D[1, :, 2] = 3.5 * m
-    D[1, :, 0] = -1.8 * np.tanh(x / 15.0) * m
-    # lip-corner retraction (left, right): the corner outward and up; the lip centre thins
+    D[0, :, 1] = -10.0 * w - 0.8 * _lobe(p, 0, -30, 8)
+    D[0, :, 2] = -3.5 * w
+    D[0, :, 1] += 0.8 * _lobe(p, -45, 12, 14) + 0.8 * _lobe(p, 45, 12, 14)
+    # lip protrusion: lips and the skin around them forward and towards the midline
+    m = _lobe(p, 0, -24, 22, 16)
+    D[1, :, 2] = 5.0 * m
+    D[1, :, 0] = -2.5 * np.tanh(x / 15.0) * m
+    # lip-corner retraction (left, right): the corner outward and up, the cheek with it;
+    # the lip centre thins
     for k, side in ((2, 1.0), (3, -1.0)):
-        c = _lobe(p, 25 * side, -22, 11)
-        D[k, :, 0] = 3.5 * side * c
-        D[k, :, 1] = 1.5 * c
-        D[k, :, 2] = -1.0 * c - 0.6 * _lobe(p, 0, -22, 8)
-    # upper-lip raise (with the nostrils a little), lower-lip depression (everting)
-    D[4, :, 1] = 2.8 * _lobe(p, 0, -15, 10, 6) + 0.6 * _lobe(p, 0, 3, 14, 6)
-    D[5, :, 1] = -2.8 * _lobe(p, 0, -30, 11, 6)
-    D[5, :, 2] = 1.2 * _lobe(p, 0, -30, 11, 6) - 0.5 * _lobe(p, 0, -45, 12, 6)
+        c = _lobe(p, 26 * side, -20, 17, 14)
+        D[k, :, 0] = 4.5 * side * c
+        D[k, :, 1] = 2.2 * c
+        D[k, :, 2] = -1.2 * c - 0.8 * _lobe(p, 0, -22, 9)
+    # upper-lip raise (with the nostrils and the nasolabial folds), lower-lip depression
+    # (everting, pulling the skin below it)
+    D[4, :, 1] = 3.5 * _lobe(p, 0, -14, 14, 8) + 1.2 * _lobe(p, 0, 0, 22, 10)
+    D[4, :, 2] = 0.8 * _lobe(p, 0, -14, 14, 8)
+    D[5, :, 1] = -3.5 * _lobe(p, 0, -32, 14, 10)
+    D[5, :, 2] = 1.5 * _lobe(p, 0, -30, 12, 7) - 0.8 * _lobe(p, 0, -48, 16, 8)
     # brow raises (left, right): brows and forehead up; the upper lid follows a little
     for k, side in ((6, 1.0), (7, -1.0)):
-        b = _lobe(p, 32 * side, 62, 18, 12)
-        D[k, :, 1] = 3.5 * b + 0.8 * _lobe(p, 30 * side, 84, 20, 10)
-        D[k, :, 2] = -0.6 * b
+        b = _lobe(p, 30 * side, 64, 24, 16)
+        D[k, :, 1] = 4.0 * b + 1.5 * _lobe(p, 26 * side, 84, 26, 12)
+        D[k, :, 2] = -0.8 * b
     # blinks (left, right): the upper lid closes; the lower lid rises slightly
     for k, side in ((8, 1.0), (9, -1.0)):
         D[k, :, 1] = -6.0 * _lobe(p, 32 * side, 42, 5) + 1.2 * _lobe(p, 32 * side, 29, 4)
         D[k, :, 2] = 1.0 * _lobe(p, 32 * side, 42, 5)
-    # cheek puff: cheeks outward and forward
+    # cheek raise (zygomatic, both sides): cheeks up and out, corners up
     for side in (1.0, -1.0):
-        c = _lobe(p, 45 * side, -12, 14)
+        c = _lobe(p, 42 * side, 0, 22, 20)
         D[10, :, 0] += 1.5 * side * c
-        D[10, :, 2] += 2.0 * c
+        D[10, :, 1] += 2.5 * c
+        D[10, :, 2] += 1.5 * c
     return D
 
 
@@ -202,19 +207,22 @@ def source_courses(rng: np.random.Generator, n_frames: int, rate: float) -> np.n
     s[:, 8] = _bumps(rng, t, bt, bw, rng.uniform(0.8, 1.0, n_blink))
     s[:, 9] = _bumps(rng, t, bt + rng.normal(0, 0.015, n_blink), bw,
                      rng.uniform(0.8, 1.0, n_blink))
-    # cheek puff: rare
-    if rng.random() < 0.3:
-        s[:, 10] = _bumps(rng, t, rng.uniform(0.3, dur, 1), np.array([0.3]), np.array([0.8]))
+    # cheek raise: slow, on a few stressed syllables
+    pick = rng.random(syl.size) < 0.25
+    s[:, 10] = _bumps(rng, t, syl[pick], np.full(pick.sum(), 2.5 * width),
+                      rng.uniform(0.3, 1.0, pick.sum()))
     # smooth onset from rest
     s *= np.clip(t / 0.15, 0, 1)[:, None] ** 2
     return s
 
 
 def _smooth_noise(rng, shape, rate: float, sigma_s: float, rms: float) -> np.ndarray:
-    """Band-limited noise along axis 0 with the given RMS, zero at the start."""
+    """Band-limited noise along axis 0 with the given RMS, rising smoothly from zero at the
+    start (over 0.15 s), so that every sentence starts at rest."""
     x = gaussian_filter1d(rng.standard_normal(shape), sigma_s * rate, axis=0, mode="reflect")
     x *= rms / max(float(np.sqrt(np.mean(x**2))), 1e-12)
-    return x - x[:1]
+    ramp = np.clip(np.arange(shape[0]) / (0.15 * rate), 0.0, 1.0) ** 2
+    return x * ramp.reshape((-1,) + (1,) * (x.ndim - 1))
 
 
 @dataclass
