@@ -18,7 +18,10 @@ is ~0.  A window is flagged when
 
     residual_rms_mm < max_residual_fraction * min(noise_mm, noise estimate of i and of j)
 
-(default 0.25 x noise_mm, i.e. < 1/5 of the independent floor sqrt(2) noise_mm) and the fitted
+(default 0.4 x noise, i.e. < 0.3 of the independent floor sqrt(2) noise: a copy made in head
+coordinates keeps, after our own head alignment, a residual of the alignment's rotation error
+times the distance between the two markers -- about 0.1 mm for the virtual S1's eyelids 64 mm
+apart -- which a stricter threshold fragments into pieces) and the fitted
 coefficient c lies in ``coefficient_range`` (a copy has c ~ 1; the range also keeps a smooth,
 noise-free segment from being "explained" by c ~ 0).  The per-marker noise estimate is
 RMS(second difference) / sqrt(6) (the white-noise value), the median over windows; it only
@@ -80,7 +83,7 @@ def find_redundant_markers(
     rate: float,
     noise_mm: float = 0.5,
     min_duration_s: float = 0.25,
-    max_residual_fraction: float = 0.25,
+    max_residual_fraction: float = 0.4,
     coefficient_range: tuple[float, float] = (0.5, 2.0),
     sentence_names: Sequence[str] | None = None,
     fill_mask: np.ndarray | None = None,
