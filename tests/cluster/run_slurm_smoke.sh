@@ -9,7 +9,8 @@
 # failed; 3 the local reference run failed; 64 bad usage; 77 skipped, this machine cannot host
 # the test cluster (reason printed on the last line as "SKIP: ...").
 #
-# Environment knobs: SLURM_SMOKE_KEEP=1 keeps the temp dir; SLURM_SMOKE_RUN_TIMEOUT (seconds,
+# Environment knobs: SLURM_SMOKE_TARGETS="file ..." builds only these targets (default: all);
+# SLURM_SMOKE_KEEP=1 keeps the temp dir; SLURM_SMOKE_RUN_TIMEOUT (seconds,
 # default 1800) bounds each snakemake run; SLURM_SMOKE_JOBS (default 4) is --jobs for SLURM;
 # SLURM_SMOKE_TMP sets the parent of the temp dir (default /tmp).
 set -uo pipefail
@@ -36,6 +37,8 @@ else
   SNAKEFILE="$ROOT/Snakefile"
   CONFIG_ARGS=(--configfile "$ROOT/config/smoke.yaml")
 fi
+
+read -r -a TARGETS <<<"${SLURM_SMOKE_TARGETS:-}" # given last: --configfile takes 1+ values
 
 T0=$(date +%s)
 log() { printf '[slurm-smoke %4ds] %s\n' "$(($(date +%s) - T0))" "$*"; }
@@ -270,6 +273,24 @@ log "srun test job ran on: $out"
 # ---------------------------------------------------------------------------------------------
 # 3. The workflow through SLURM.
 # ---------------------------------------------------------------------------------------------
+# Both runs use one snapshot of the code taken now (Snakefile, workflow/, scripts/, src/,
+# config/), so that edits or commits made in the working tree while the test runs cannot make
+# the two runs differ. PYTHONPATH puts the snapshot's package ahead of the editable install
+# (sbatch --export=ALL passes it to the jobs). Outside a git checkout the provenance sidecars
+# record commit "unknown" in both runs. The profile under test is the repository's.
+if [[ $MODE == smoke ]]; then
+  SNAP="$TMP/snapshot/$(basename "$ROOT")"
+  mkdir -p "$SNAP"
+  tar -C "$ROOT" --exclude=./.venv --exclude=./.git --exclude=./results --exclude=./.snakemake \
+    --exclude=./.pytest_cache --exclude=./.ruff_cache --exclude=__pycache__ -cf - . |
+    tar -C "$SNAP" -xf - || skip "could not copy the workflow to $SNAP"
+  # the real data live beside the project root (../shared/data)
+  [[ -e $ROOT/../shared ]] && ln -s "$(cd "$ROOT/../shared" && pwd)" "$TMP/snapshot/shared"
+  SNAKEFILE="$SNAP/Snakefile"
+  CONFIG_ARGS=(--configfile "$SNAP/config/smoke.yaml")
+  export PYTHONPATH="$SNAP/src${PYTHONPATH:+:$PYTHONPATH}"
+  log "code snapshot in $SNAP"
+fi
 SLURM_DIR="$TMP/slurm_run"
 LOCAL_DIR="$TMP/local_run"
 mkdir -p "$SLURM_DIR" "$LOCAL_DIR"
@@ -282,10 +303,10 @@ SLURM_ARGS=(
   --slurm-keep-successful-logs
   --slurm-jobname-prefix facemotion_ci
 )
-log "SLURM run: snakemake -s $SNAKEFILE --directory $SLURM_DIR ${CONFIG_ARGS[*]} --profile $PROFILE --jobs $JOBS ${SLURM_ARGS[*]}"
+log "SLURM run: snakemake -s $SNAKEFILE --directory $SLURM_DIR ${CONFIG_ARGS[*]} --profile $PROFILE --jobs $JOBS ${SLURM_ARGS[*]} ${TARGETS[*]}"
 t=$(date +%s)
 timeout -k 60 "$RUN_TIMEOUT" snakemake -s "$SNAKEFILE" --directory "$SLURM_DIR" "${CONFIG_ARGS[@]}" \
-  --profile "$PROFILE" --jobs "$JOBS" "${SLURM_ARGS[@]}" \
+  --profile "$PROFILE" --jobs "$JOBS" "${SLURM_ARGS[@]}" "${TARGETS[@]}" \
   </dev/null >"$TMP/slurm_run.log" 2>&1
 slurm_rc=$?
 SLURM_SECONDS=$(($(date +%s) - t))
@@ -320,10 +341,10 @@ fi
 # ---------------------------------------------------------------------------------------------
 # 4. The same workflow locally, then compare every result file.
 # ---------------------------------------------------------------------------------------------
-log "local run: snakemake -s $SNAKEFILE --directory $LOCAL_DIR ${CONFIG_ARGS[*]} --cores 2"
+log "local run: snakemake -s $SNAKEFILE --directory $LOCAL_DIR ${CONFIG_ARGS[*]} --cores 2 ${TARGETS[*]}"
 t=$(date +%s)
 timeout -k 60 "$RUN_TIMEOUT" snakemake -s "$SNAKEFILE" --directory "$LOCAL_DIR" "${CONFIG_ARGS[@]}" \
-  --cores 2 </dev/null >"$TMP/local_run.log" 2>&1
+  --cores 2 "${TARGETS[@]}" </dev/null >"$TMP/local_run.log" 2>&1
 local_rc=$?
 LOCAL_SECONDS=$(($(date +%s) - t))
 log "local run finished with exit code $local_rc in ${LOCAL_SECONDS}s"
