@@ -97,3 +97,16 @@ def test_marker_missing_everywhere_is_an_error(tmp_path):
     make_take(f, 0, drop=("m3", 0, 120))
     with pytest.raises(InputError, match="m3"):
         load_dataset([str(f)], "csv", head_markers=HEAD, train=[0], heldout=[])
+
+
+def test_dataset_without_heldout_sentences(tmp_path):
+    """No held-out sentences: split_roles returns None for them (the workflow then asks for no
+    evaluation outputs for that dataset, and the evaluation script refuses with an error)."""
+    f = tmp_path / "a.csv"
+    make_take(f, 0)
+    out = load_dataset([str(f)], "csv", head_markers=HEAD, train=[0], heldout=[])
+    train, held = split_roles(out.displacements, out.sentences)
+    assert held is None and train.sentences == ["a"]
+    no_train = out.sentences.assign(role="heldout")
+    with pytest.raises(InputError, match="no training sentences"):
+        split_roles(out.displacements, no_train)
