@@ -3,6 +3,7 @@
 import pandas as pd
 
 from facemotion.plots.rank import plot_r_values
+from facemotion.plots.selection import plot_selection_agreement
 from facemotion.provenance import save_figure, write_table
 from facemotion.snakemake_adapter import run_step
 
@@ -17,6 +18,8 @@ def main(sm, log, prov):
         col = list(t["marker"][:n]) + [""] * max(0, n - len(t))
         table[lab] = col
     write_table(table, sm.output.table, "selected_markers", prov)
+    fig = plot_selection_agreement(table, k=min(10, n))
+    save_figure(fig, [sm.output.sel_png, sm.output.sel_pdf], "selected_markers", prov)
     ranks = []
     for lab, p in zip(labels, sm.input.rank, strict=True):
         r = pd.read_csv(p, sep="\t", dtype={"redundant_markers": str}, keep_default_na=False)

@@ -127,6 +127,10 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     if len(keep) < 2:
         raise InputError(f"{paths[0]}: fewer than 2 markers left after include/exclude")
     recs = [r.select(keep) for r in recs]
+    dropped = [m for m in labels if m not in set(keep)]
+    log.info("analysing %d of %d markers: %s", len(keep), len(labels), ", ".join(keep))
+    if dropped:
+        log.info("left out (sheet's include/exclude_markers): %s", ", ".join(dropped))
     missing = [~np.isfinite(r.points).all(axis=2) for r in recs]
     filled_recs, reports = [], []
     for r in recs:

@@ -8,6 +8,13 @@ rule tabulate_selection:
     output:
         table="results/tables/selected_markers.tsv",
         meta="results/tables/selected_markers.meta.json",
+        sel_png=report(
+            "results/figures/selected_markers.png",
+            caption="../report/selected_markers.rst",
+            category="0. Summary",
+        ),
+        sel_pdf="results/figures/selected_markers.pdf",
+        sel_meta="results/figures/selected_markers.meta.json",
         summary="results/tables/rank_summary.tsv",
         summary_meta="results/tables/rank_summary.meta.json",
         png=report(
