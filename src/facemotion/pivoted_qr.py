@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 import scipy.linalg
+import scipy.linalg.lapack
 
 from facemotion.errors import InputError
 
@@ -263,6 +264,13 @@ def rank_from_r0(R0: np.ndarray, rows: int, labels: Sequence[str]) -> MarkerRank
 def rank_from_gram(G: np.ndarray, rows: int, labels: Sequence[str]) -> MarkerRanking:
     """Pivoted Cholesky of G = A^T A: G_PP = R^T R."""
     n = G.shape[0]
+    # LAPACK's pivoted Cholesky (dpstrf: the pivot is the largest remaining Schur-complement
+    # diagonal, i.e. the largest orthogonal residual, as in QR with column pivoting); it stops
+    # at a numerically rank-deficient G, where our own implementation completes the order.
+    U, piv, rank, info = scipy.linalg.lapack.dpstrf(G, lower=0)
+    if info == 0 and rank == n:
+        order = piv - 1
+        return _ranking(np.triu(U), order, rows, labels, "gram", np.sqrt(n * _EPS))
     piv, Rr = pivoted_cholesky(G)
     order = _complete_order(piv, n)
     # Gram accuracy: r_kk below ~sqrt(n eps) r_11 is noise
