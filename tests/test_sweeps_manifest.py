@@ -18,9 +18,11 @@ from facemotion.sweeps import expand_grid, settled_after, top_k_frequency
 def test_expand_grid_is_the_cartesian_product_in_order():
     pts = expand_grid({"tolerance_mm": [0.25, 0.5], "k": [5, 10, 15]})
     assert len(pts) == 6
-    assert pts[0] == {"tolerance_mm": 0.25, "k": 5, "train_sentences": None}
+    assert pts[0] == {"tolerance_mm": 0.25, "k": 5, "train_sentences": None,
+                      "marker_subset": None}
     assert pts[-1]["tolerance_mm"] == 0.5 and pts[-1]["k"] == 15
-    assert expand_grid({}) == [{"tolerance_mm": 0.5, "k": 10, "train_sentences": None}]
+    assert expand_grid({}) == [{"tolerance_mm": 0.5, "k": 10, "train_sentences": None,
+                                "marker_subset": None}]
 
 
 def test_settled_after_finds_the_last_excursion():
@@ -88,3 +90,44 @@ def test_sidecar_records_params_and_wildcards(tmp_path):
     assert meta["config"] == {"params": {"tolerances_mm": [0.5]}, "wildcards": {"dataset": "S1"}}
     assert meta["inputs"][0]["path"] == str(f)
     json.dumps(meta)
+
+
+def _toy_displacements(n_sent=6, n=8, seed=0):
+    from facemotion.displacements import Displacements
+
+    rng = np.random.default_rng(seed)
+    W = rng.standard_normal((3, n)) * 3
+    blocks, rs, rf = [], [], []
+    for s in range(n_sent):
+        F = 120
+        src = np.sin(np.linspace(0, 6, F)[:, None, None] * rng.uniform(1, 3, (1, 3, 3)))
+        d = np.einsum("fck,kn->fcn", src, W) + 0.3 * rng.standard_normal((F, 3, n))
+        blocks.append(d.reshape(3 * F, n))
+        rs.append(np.full(3 * F, s))
+        rf.append(np.repeat(np.arange(F), 3))
+    A = np.vstack(blocks)
+    F = A.shape[0] // 3
+    return Displacements(A, [f"m{j}" for j in range(n)], [f"s{s}" for s in range(n_sent)],
+                         np.concatenate(rs), np.concatenate(rf), 100.0,
+                         np.zeros((F, n), bool), np.zeros(F), rng.normal(size=(n, 3)))
+
+
+def test_marker_subset_axis_selects_columns():
+    from facemotion.pivoted_qr import rank_markers
+    from facemotion.sweeps import evaluate_point
+
+    pts = expand_grid({"k": [2], "marker_subsets": {"lips": ["m1", "m3", "m5", "m7"],
+                                                    "all_but_one": [f"m{j}" for j in range(7)]}})
+    assert [p["marker_subset"] for p in pts] == ["all_but_one", "lips"]
+    assert pts[1]["markers"] == ["m1", "m3", "m5", "m7"]
+    d = _toy_displacements()
+    train, held = d.subset([0, 1, 2, 3]), d.subset([4, 5])
+    row = evaluate_point(train, held, pts[1])
+    assert row["n_markers"] == 4 and row["marker_subset"] == "lips"
+    # independent reference: the ranking of the four columns alone
+    sub = train.select_markers(["m1", "m3", "m5", "m7"])
+    assert np.array_equal(sub.A, train.A[:, [1, 3, 5, 7]])
+    ref = rank_markers(train.A[:, [1, 3, 5, 7]], ["m1", "m3", "m5", "m7"])
+    assert row["first_pivots"] == ",".join(ref.labels_in_order)
+    with pytest.raises(InputError, match="mX"):
+        train.select_markers(["m1", "mX"])

@@ -71,6 +71,18 @@ class Displacements:
         """(F, n, 3) displacements, the inverse of the frame-major layout of A."""
         return self.A.reshape(self.n_frames, 3, -1).transpose(0, 2, 1)
 
+    def select_markers(self, labels) -> Displacements:
+        """Only these markers (columns), in this order; an unknown label is an error."""
+        labels = [str(x) for x in labels]
+        missing = [m for m in labels if m not in self.labels]
+        if missing:
+            raise InputError(f"displacements: marker(s) {missing[:10]} not in the data")
+        idx = [self.labels.index(m) for m in labels]
+        sn = None if self.sentence_neutral is None else self.sentence_neutral[:, idx]
+        return Displacements(self.A[:, idx], labels, self.sentences, self.row_sentence,
+                             self.row_frame, self.rate, self.fill_mask[:, idx],
+                             self.head_residual, self.neutral[idx], sn)
+
     def rows_for(self, sentence_indices) -> np.ndarray:
         """Bool mask over the rows of A of the given sentences (indices into ``sentences``)."""
         idx = self._check_indices(sentence_indices)

@@ -14,18 +14,28 @@ import pandas as pd
 
 from facemotion.errors import InputError
 
-GRID_KEYS = ("tolerance_mm", "k", "train_sentences")
-DEFAULTS = {"tolerance_mm": 0.5, "k": 10, "train_sentences": None}
+GRID_KEYS = ("tolerance_mm", "k", "train_sentences", "marker_subset")
+DEFAULTS = {"tolerance_mm": 0.5, "k": 10, "train_sentences": None, "marker_subset": None}
 
 
 def expand_grid(spec: dict) -> list[dict]:
-    """The cartesian product of the sweep's value lists, in a fixed order."""
+    """The cartesian product of the sweep's value lists, in a fixed order.
+
+    ``marker_subsets`` (name -> labels) becomes the axis ``marker_subset`` (its names, sorted);
+    each point then carries the name and its ``markers``.
+    """
+    spec = dict(spec)
+    subsets = spec.pop("marker_subsets", None) or {}
+    if subsets:
+        spec["marker_subset"] = sorted(subsets)
     keys = [k for k in GRID_KEYS if spec.get(k)]
     values = [list(spec[k]) for k in keys]
     points = []
     for combo in itertools.product(*values) if keys else [()]:
         point = dict(DEFAULTS)
         point.update(dict(zip(keys, combo, strict=True)))
+        if point["marker_subset"] is not None:
+            point["markers"] = [str(m) for m in subsets[point["marker_subset"]]]
         points.append(point)
     return points
 
@@ -51,6 +61,9 @@ def evaluate_point(train, held, point: dict, method: str = "auto", n_first: int 
     from facemotion.prediction import error_curve
     from facemotion.sentence_sweep import sentence_sweep
 
+    if point.get("markers"):
+        train = train.select_markers(point["markers"])
+        held = held.select_markers(point["markers"]) if held is not None else None
     n_train = point.get("train_sentences")
     if n_train is not None:
         if n_train > len(train.sentences):
@@ -65,6 +78,8 @@ def evaluate_point(train, held, point: dict, method: str = "auto", n_first: int 
     tol = float(point["tolerance_mm"])
     rank = epsilon_rank(ranking, [tol]).iloc[0]
     row = {
+        "marker_subset": point.get("marker_subset") or "all",
+        "n_markers": n,
         "tolerance_mm": tol,
         "k": k,
         "train_sentences": len(train.sentences),

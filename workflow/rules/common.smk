@@ -226,6 +226,8 @@ for _name, _spec in config["sweeps"].items():
         if _d not in DATASETS:
             raise InputError(f"setting sweeps.{_name}.datasets: unknown dataset {_d!r}")
         _n = n_analysed_markers(_d)
+        for _sub, _labels in (_spec.get("marker_subsets") or {}).items():
+            _n = min(_n, len(_labels))
         for _k in _spec.get("k", []):
             if _k >= _n:
                 raise InputError(
