@@ -68,7 +68,7 @@ def test_take_with_different_markers_names_the_file(tmp_path):
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
     make_take(a, 0)
     make_take(b, 1, labels=HEAD + ["m1", "m2", "m3", "m4", "mX"])
-    with pytest.raises(InputError, match=r"b\.csv: marker labels differ .*extra markers \['mX'\]"):
+    with pytest.raises(InputError, match=r"b\.csv: marker labels differ .*extra markers mX"):
         load_dataset([str(a), str(b)], "csv", head_markers=HEAD, train=[0, 1], heldout=[])
 
 

@@ -124,7 +124,7 @@ def _neutral_pose(rec: Recording, neutral: str) -> np.ndarray:
     return rec.points[:10].mean(axis=0)
 
 
-def _label_difference(rec: Recording, first: Recording) -> str:
+def label_difference(rec: Recording, first: Recording) -> str:
     extra = [x for x in rec.labels if x not in set(first.labels)]
     lacking = [x for x in first.labels if x not in set(rec.labels)]
     what = []
@@ -171,7 +171,7 @@ def build_displacements(recordings: list[Recording], names: list[str],
         src = rec.source or name
         if rec.labels != first.labels:
             raise InputError(f"{src}: marker labels differ from {first.source or names[0]}: "
-                             + _label_difference(rec, first))
+                             + label_difference(rec, first))
         if rec.rate != first.rate:
             raise InputError(f"{src}: frame rate {rec.rate} Hz differs from "
                              f"{first.source or names[0]} ({first.rate} Hz)")

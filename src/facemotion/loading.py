@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from facemotion.displacements import Displacements, build_displacements
+from facemotion.displacements import Displacements, build_displacements, label_difference
 from facemotion.errors import InputError
 from facemotion.gaps import fill_gaps
 from facemotion.head_motion import align_head
@@ -34,20 +34,12 @@ class LoadedDataset:
 
 
 def _check_labels(recs: list[Recording]) -> None:
+    """Every take has the first take's markers, in the same order, and its frame rate."""
     first = recs[0]
     for rec in recs[1:]:
         if rec.labels != first.labels:
-            extra = sorted(set(rec.labels) - set(first.labels))
-            lacking = sorted(set(first.labels) - set(rec.labels))
-            what = []
-            if extra:
-                what.append(f"extra markers {extra[:10]}")
-            if lacking:
-                what.append(f"missing markers {lacking[:10]}")
-            if not what:
-                what.append("the same markers in a different order")
             raise InputError(f"{rec.source}: marker labels differ from {first.source}: "
-                             + "; ".join(what))
+                             + label_difference(rec, first))
         if rec.rate != first.rate:
             raise InputError(f"{rec.source}: frame rate {rec.rate} Hz differs from "
                              f"{first.source} ({first.rate} Hz)")
