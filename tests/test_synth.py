@@ -76,13 +76,13 @@ def ranking(A):
 
 @pytest.fixture(scope="module")
 def subjects():
-    return {d: simulate_subject(d, seed=s) for d, s in STUDY_SEEDS.items()}
+    return {d: simulate_subject(d, seed=s, occlusions=False) for d, s in STUDY_SEEDS.items()}
 
 
 def test_deterministic_by_seed():
-    a = simulate_subject("S2a", seed=5, n_sentences=3)
-    b = simulate_subject("S2a", seed=5, n_sentences=3)
-    c = simulate_subject("S2a", seed=6, n_sentences=3)
+    a = simulate_subject("S2a", seed=5, n_sentences=3, occlusions=False)
+    b = simulate_subject("S2a", seed=5, n_sentences=3, occlusions=False)
+    c = simulate_subject("S2a", seed=6, n_sentences=3, occlusions=False)
     for ra, rb in zip(a.recordings, b.recordings, strict=True):
         assert np.array_equal(ra.points, rb.points) and np.array_equal(ra.filled, rb.filled)
     for key in a.truth:
@@ -90,7 +90,7 @@ def test_deterministic_by_seed():
     assert not np.array_equal(a.recordings[0].points[:10], c.recordings[0].points[:10])
     assert not np.array_equal(a.truth["source_courses"][:100], c.truth["source_courses"][:100])
     # another talker changes the face itself
-    d = simulate_subject("S2a", seed=5, n_sentences=3, talker_seed=9)
+    d = simulate_subject("S2a", seed=5, n_sentences=3, talker_seed=9, occlusions=False)
     assert not np.allclose(a.truth["neutral"], d.truth["neutral"])
 
 
@@ -248,7 +248,7 @@ def test_head_motion_and_noise_are_as_documented(subjects):
 
 def test_smoke_size_generic_design_and_recordings(tmp_path):
     subj = simulate_subject("S", seed=0, n_sentences=4, sentence_duration=(0.5, 1.0),
-                            rate=60.0)
+                            rate=60.0, occlusions=False)
     assert subj.names == ["S_s01", "S_s02", "S_s03", "S_s04"]
     assert subj.head_markers == HEAD
     for rec in subj.recordings:
@@ -286,3 +286,29 @@ def test_bad_settings_name_the_setting():
         simulate_subject("S", n_sentences=2, rate=0.0)
     with pytest.raises(InputError, match="fill_fraction"):
         simulate_subject("S1", fill_fraction=1.5)
+
+
+def test_occlusions_are_missing_samples_that_survive_c3d(tmp_path):
+    """Occluded samples are NaN exactly where the truth says, never in 11/13 or the first
+    frames; written to C3D as invalid samples they read back as NaN; everything else is the
+    same as without occlusions (a separate random stream)."""
+    from facemotion.readers import read_c3d, write_c3d
+
+    subj = simulate_subject("S2a", seed=4, n_sentences=12)
+    clean = simulate_subject("S2a", seed=4, n_sentences=12, occlusions=False)
+    missing = subj.truth["missing"]
+    assert missing.any()
+    points = np.concatenate([r.points for r in subj.recordings])
+    assert np.array_equal(~np.isfinite(points).all(axis=2), missing)
+    labels = subj.recordings[0].labels
+    assert not missing[:, [labels.index("11"), labels.index("13")]].any()
+    assert np.array_equal(points[~missing], np.concatenate([r.points for r in
+                                                            clean.recordings])[~missing])
+    start = 0
+    for rec in subj.recordings:
+        assert not missing[start:start + 10].any()
+        start += rec.n_frames
+    k = int(np.flatnonzero([~np.isfinite(r.points).all() for r in subj.recordings])[0])
+    write_c3d(tmp_path / "s.c3d", subj.recordings[k])
+    back = read_c3d(tmp_path / "s.c3d")
+    assert np.array_equal(np.isnan(back.points), np.isnan(subj.recordings[k].points))

@@ -374,7 +374,7 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
                      sentence_duration: tuple[float, float] = (1.5, 4.0),
                      head_rotation_deg: float = 1.5, head_translation_mm: float = 2.0,
                      noise_mm: float = NOISE_3D_RMS_MM, fill_fraction: float = 0.9,
-                     ) -> SimulatedSubject:
+                     occlusions: bool = True) -> SimulatedSubject:
     """Simulate one subject of a design (S1, S2a, S2b or S); see the module notes.
 
     talker_seed: None uses the design's talker (S1: talker 1; S2a and S2b: talker 2, the same
@@ -382,7 +382,12 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
     high) seconds, drawn uniformly per sentence. head_rotation_deg, head_translation_mm: RMS
     per axis of the smooth head motion. noise_mm: 3-D RMS of the measurement noise.
     fill_fraction: S1 only, the fraction of sentences whose marker 13 is filled whole by
-    copying marker 11 (the others are filled over their first 30-70 %).
+    copying marker 11 (the others are filled over their first 30-70 %). occlusions: leave
+    a few samples missing (NaN, written to C3D as invalid), as a marker system does when a
+    marker is hidden: in a quarter of the sentences a short gap (3-12 frames) and in one in
+    twelve a long one (0.3-0.6 s), each in a random face marker other than 11 and 13, never in
+    a sentence's first 10 or last 5 frames (drawn from a separate random stream, so they do not
+    change anything else); ``truth['missing']`` marks them.
     """
     _check_design(design)
     n = n_sentences if n_sentences is not None else DESIGNS[design]
@@ -429,7 +434,9 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
     noise_axis = noise_mm / np.sqrt(3.0)
     rest = np.concatenate([talker.neutral, talker.head_band])
     rot_rms = np.deg2rad(head_rotation_deg)
-    recs, names, truth_s, truth_head, truth_fill = [], [], [], [], []
+    orng = np.random.default_rng([seed, 99, 1 + list(DESIGNS).index(design)])
+    occludable = [j for j in range(n_face) if j not in (i11, i13)]
+    recs, names, truth_s, truth_head, truth_fill, truth_miss = [], [], [], [], [], []
     for s in range(n):
         F = max(int(round(rng.uniform(lo, hi) * rate)), 4)
         courses = source_courses(rng, F, rate)
@@ -453,8 +460,17 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
             rng, (F, 3), rate, 0.35, head_translation_mm)
         R = Rotation.from_rotvec(rotvec).as_matrix()
         moved = np.matmul(pts - HEAD_PIVOT, R.transpose(0, 2, 1)) + (HEAD_PIVOT + trans[:, None])
+        missing = np.zeros((F, len(labels)), bool)
+        if occlusions:
+            for prob, (g0, g1) in ((0.25, (3, 12)), (1 / 12, (0.3 * rate, 0.6 * rate))):
+                g = int(orng.integers(int(g0), int(g1) + 1))
+                if orng.random() < prob and F - 5 - g > 10:
+                    start = int(orng.integers(10, F - 5 - g))
+                    missing[start:start + g, int(orng.choice(occludable))] = True
+            moved[missing] = np.nan
         name = f"{design}_s{s + 1:02d}"
         recs.append(Recording(labels, moved, rate, name, filled))
+        truth_miss.append(missing)
         names.append(name)
         truth_s.append(courses)
         truth_head.append(np.concatenate([rotvec, trans], axis=1))
@@ -467,6 +483,7 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
         "sentence_frames": np.array([len(c) for c in truth_s]),
         "source_courses": np.concatenate(truth_s), "head_motion": np.concatenate(truth_head),
         "head_pivot": HEAD_PIVOT.copy(), "filled": filled_all,
+        "missing": np.concatenate(truth_miss),
         "filled_13": filled_all[:, i13].copy(), "noise_per_axis_mm": np.array(noise_axis),
         "rate": np.array(float(rate)), "talker_seed": np.array(ts), "seed": np.array(seed),
     }
