@@ -124,6 +124,19 @@ def _neutral_pose(rec: Recording, neutral: str) -> np.ndarray:
     return rec.points[:10].mean(axis=0)
 
 
+def check_same_take_layout(rec: Recording, first: Recording, where: str = "",
+                           first_where: str = "") -> None:
+    """A take must have the first take's markers, in the same order, and its frame rate."""
+    where = where or rec.source
+    first_where = first_where or first.source
+    if rec.labels != first.labels:
+        raise InputError(f"{where}: marker labels differ from {first_where}: "
+                         + label_difference(rec, first))
+    if rec.rate != first.rate:
+        raise InputError(f"{where}: frame rate {rec.rate} Hz differs from {first_where} "
+                         f"({first.rate} Hz)")
+
+
 def label_difference(rec: Recording, first: Recording) -> str:
     extra = [x for x in rec.labels if x not in set(first.labels)]
     lacking = [x for x in first.labels if x not in set(rec.labels)]
@@ -169,12 +182,7 @@ def build_displacements(recordings: list[Recording], names: list[str],
     blocks, neutrals, rs, rf = [], [], [], []
     for s, (rec, name, hr) in enumerate(zip(recordings, names, head_residuals, strict=True)):
         src = rec.source or name
-        if rec.labels != first.labels:
-            raise InputError(f"{src}: marker labels differ from {first.source or names[0]}: "
-                             + label_difference(rec, first))
-        if rec.rate != first.rate:
-            raise InputError(f"{src}: frame rate {rec.rate} Hz differs from "
-                             f"{first.source or names[0]} ({first.rate} Hz)")
+        check_same_take_layout(rec, first, src, first.source or names[0])
         if rec.n_frames == 0:
             raise InputError(f"{src}: recording has no frames")
         if hr.shape != (rec.n_frames,):

@@ -12,12 +12,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from facemotion.displacements import Displacements, build_displacements, label_difference
+from facemotion.displacements import (
+    Displacements,
+    build_displacements,
+    check_same_take_layout,
+)
 from facemotion.errors import InputError
 from facemotion.gaps import fill_gaps
 from facemotion.head_motion import align_head
 from facemotion.readers import read_recording
-from facemotion.recording import Recording
 
 log = logging.getLogger("facemotion")
 
@@ -31,18 +34,6 @@ class LoadedDataset:
     missing: np.ndarray       # (F, n) bool, missing before filling
     filled: np.ndarray        # (F, n) bool, filled (by us or the producer)
     sentence_starts_s: list[float]
-
-
-def _check_labels(recs: list[Recording]) -> None:
-    """Every take has the first take's markers, in the same order, and its frame rate."""
-    first = recs[0]
-    for rec in recs[1:]:
-        if rec.labels != first.labels:
-            raise InputError(f"{rec.source}: marker labels differ from {first.source}: "
-                             + label_difference(rec, first))
-        if rec.rate != first.rate:
-            raise InputError(f"{rec.source}: frame rate {rec.rate} Hz differs from "
-                             f"{first.source} ({first.rate} Hz)")
 
 
 def _aggregate_gap_reports(reports: list[pd.DataFrame]) -> pd.DataFrame:
@@ -79,7 +70,8 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     for i, p in enumerate(paths):
         log.info("reading %s (%d/%d)", p, i + 1, len(paths))
         recs.append(read_recording(p, fmt, units=units))
-    _check_labels(recs)
+    for rec in recs[1:]:
+        check_same_take_layout(rec, recs[0])
     labels = recs[0].labels
     for m in list(exclude_markers) + list(include_markers):
         if m not in labels:
