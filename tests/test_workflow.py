@@ -110,7 +110,9 @@ def test_bad_config_value_is_rejected_at_parse_time(tmp_path):
     for bad, name in (("qr:\n  tolerances_mm: [-1]\n", "tolerances_mm"),
                       ("sweeps:\n  s:\n    k: [0]\n", "k"),
                       ("sweeps:\n  s:\n    k: [60]\n", "sweeps.s.k"),
-                      ("animation:\n  formt: gif\n", "formt")):
+                      ("animation:\n  formt: gif\n", "formt"),
+                      ("shared_data: /nonexistent\nlips:\n  subjects:\n    g:\n"
+                       "      source: grid\n", "lips.subjects.g")):
         proc = run_snakemake(tmp_path, "-n", check=False, extra_config=bad)
         assert proc.returncode != 0, bad
         assert name in proc.stdout + proc.stderr, (bad, proc.stderr[-2000:])

@@ -24,6 +24,11 @@ if not workflow.config_settings.configfiles:
     if "subjects" in _user and "datasets" not in _user:
         _base.pop("datasets", None)
         _base["default_datasets"] = True
+    if "subjects" in _user and "lips" not in _user:
+        # your own sheet: keep the built-in virtual lip talker, not the GRID one (shared data)
+        _base["lips"]["subjects"] = {
+            k: v for k, v in _base["lips"]["subjects"].items() if v["source"] != "grid"
+        }
     _base.update(_user)
     config.clear()
     config.update(_base)
@@ -46,6 +51,12 @@ SHEET = _resolve(config["subjects"])
 SUBJECTS = read_subject_sheet(
     SHEET, shared_data=SHARED_DATA, virtual_dir="results/virtual"
 )
+for _ls, _spec in config["lips"]["subjects"].items():
+    if _spec["source"] == "grid" and not (SHARED_DATA / "grid").is_dir():
+        raise InputError(
+            f"setting lips.subjects.{_ls}: the GRID clips are read from {SHARED_DATA}/grid, "
+            "which does not exist; set shared_data or remove this lip subject"
+        )
 validate(
     pd.read_csv(SHEET, sep="\t", dtype=str, keep_default_na=False, comment="#"),
     workflow.source_path("../schemas/subjects.schema.yaml"),
