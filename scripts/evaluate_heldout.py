@@ -1,4 +1,4 @@
-"""Held-out error against k (paper Figs. 9-10) and a measured-vs-model trajectory."""
+"""Held-out error against k (paper Fig. 10) and a measured-vs-model trajectory (Fig. 9)."""
 
 import numpy as np
 import pandas as pd
@@ -30,24 +30,40 @@ def main(sm, log, prov):
     marker = p.marker
     s = min(p.sentence, len(held.sentences)) - 1
     one = held.subset([s])
-    if marker is None or marker not in held.labels or marker in main_markers:
-        # the secondary marker that moves most in this sentence
+    requested = marker
+    if marker is None or marker not in held.labels:
+        # no marker requested, or the requested one (default 56, the paper's) is not in this
+        # dataset: the secondary marker that moves most in this sentence, said in the log, the
+        # table and the figure
         secondary = [m for m in one.labels if m not in main_markers]
         motion = {m: float(np.sum(one.A[:, one.labels.index(m)] ** 2)) for m in secondary}
-        fallback = max(secondary, key=lambda m: (motion[m], m))
-        log.info("trajectory marker %r unavailable or a main marker at k=%d; using %s, the "
-                 "secondary marker that moves most", marker, k, fallback)
-        marker = fallback
+        marker = max(secondary, key=lambda m: (motion[m], m))
+        log.warning("eval.trajectory_marker %r %s: drawing %s, the secondary marker that moves "
+                    "most in %s", requested,
+                    "not set" if requested is None else "is not in this dataset", marker,
+                    one.sentences[0])
+    in_basis = marker in main_markers
+    if in_basis:
+        log.warning("trajectory marker %s is one of the %d main markers (pivot %d): the model "
+                    "copies it and its error is zero; the figure says so", marker, k,
+                    main_markers.index(marker) + 1)
+    else:
+        log.info("trajectory marker %s is a secondary marker at k = %d", marker, k)
     pred = predict(ranking, k, one.A)
     j = one.labels.index(marker)
     measured = one.A[:, j].reshape(-1, 3)
     model = pred[:, j].reshape(-1, 3)
     t = np.arange(measured.shape[0]) / one.rate
     errs = np.abs(measured - model).max(axis=0)
-    table = pd.DataFrame({"marker": marker, "sentence": one.sentences[0], "k": k,
+    table = pd.DataFrame({"marker": marker, "requested_marker": requested or "",
+                          "sentence": one.sentences[0], "k": k, "in_basis": in_basis,
                           "axis": ["x", "y", "z"], "max_abs_error_mm": errs})
     write_table(table, sm.output.traj, "trajectory_errors", prov)
-    fig = plot_trajectory(t, measured, model, marker=marker, sentence=one.sentences[0], k=k)
+    fig = plot_trajectory(t, measured, model, marker=marker, sentence=one.sentences[0], k=k,
+                          in_basis=in_basis,
+                          note=None if requested == marker else
+                          f"marker {requested} requested, not in this dataset" if requested
+                          else "no marker requested: the secondary marker that moves most")
     save_figure(fig, [sm.output.traj_png, sm.output.traj_pdf], "trajectory", prov)
 
 

@@ -12,7 +12,8 @@ from facemotion.sweeps import evaluate_point
 def main(sm, log, prov):
     train, held = split_roles(load_displacements(sm.input.npz), sm.input.sentences)
     row = evaluate_point(train, held, dict(sm.params.point), method=sm.params.method,
-                         settle_tolerance=sm.params.settle_tolerance)
+                         settle_tolerance=sm.params.settle_tolerance,
+                         r_normalisation=sm.params.r_normalisation)
     row = {"sweep": sm.wildcards.sweep, "dataset": sm.params.label,
            "point": int(sm.wildcards.point), **row}
     log.info("%s", row)

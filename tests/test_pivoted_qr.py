@@ -8,7 +8,10 @@ import scipy.linalg.interpolative as sli
 from facemotion.errors import InputError
 from facemotion.pivoted_qr import (
     epsilon_rank,
+    implied_rms_per_coordinate,
+    paper_epsilon_rank,
     pivoted_cholesky,
+    r22_norm,
     rank_markers,
     tsqr_r,
     update_r,
@@ -78,15 +81,101 @@ def test_auto_falls_back_to_tsqr_on_copied_marker():
 def test_epsilon_rank_counts_and_lists_redundant_markers():
     A, labels = correlated(noise=0.4)
     rk = rank_markers(A, labels)
-    df = epsilon_rank(rk, [0.01, 1.0, 1e6])
-    assert list(df.columns) == ["tolerance_mm", "epsilon_rank", "redundant_markers"]
+    df = epsilon_rank(rk, [0.01, 1.0, 1e6], normalisation="per_coordinate")
+    assert list(df.columns) == ["tolerance_mm", "r_normalisation", "epsilon_rank",
+                                "r22_norm_at_rank_mm", "diagonal_count", "redundant_markers"]
     assert df.epsilon_rank.tolist()[0] == 20 and df.redundant_markers[0] == ""
-    assert df.epsilon_rank[2] == 0
-    k = int(np.sum(rk.r_rms > 1.0))
-    assert df.epsilon_rank[1] == k
+    assert df.epsilon_rank[2] == 0 and df.diagonal_count[2] == 0
+    # the diagonal count is the number of normalised r_kk above the tolerance ...
+    assert df.diagonal_count[1] == int(np.sum(rk.r_rms > 1.0))
+    # ... and never exceeds the paper's epsilon-rank
+    assert (df.diagonal_count <= df.epsilon_rank).all()
+    k = int(df.epsilon_rank[1])
     assert df.redundant_markers[1] == ",".join(rk.labels_in_order[k:])
     with pytest.raises(InputError, match="tolerances_mm"):
         epsilon_rank(rk, [0.5, -1])
+    with pytest.raises(InputError, match="r_normalisation"):
+        epsilon_rank(rk, [0.5], normalisation="size")
+
+
+def _projected_tail_norm(A, order, k):
+    """Independent ||R22||_2: the trailing pivot columns minus their least-squares fit on the
+    first k pivot columns (numpy lstsq), as a 2-norm (numpy SVD)."""
+    lead, tail = A[:, order[:k]], A[:, order[k:]]
+    if k:
+        tail = tail - lead @ np.linalg.lstsq(lead, tail, rcond=None)[0]
+    return np.linalg.norm(tail, 2) if tail.size else 0.0
+
+
+def test_r22_norm_against_svd_and_the_singular_value_bound():
+    A, labels = correlated(F=300, n=9, sources=4, noise=0.05, seed=7)
+    rk = rank_markers(A, labels, method="scipy")
+    sigma = np.linalg.svd(A, compute_uv=False)          # descending
+    for k in range(0, rk.n + 1):
+        ref = _projected_tail_norm(A, rk.order, k)
+        assert r22_norm(rk, k) == pytest.approx(ref, rel=1e-9, abs=1e-9)
+        if k < rk.n:
+            # Sec. III: sigma_{k+1}(A) <= ||R22||_2 (Chan 1987); ||R22||_2 >= |r_{k+1}|
+            assert sigma[k] <= r22_norm(rk, k) * (1 + 1e-12)
+            assert rk.r[k] <= r22_norm(rk, k) * (1 + 1e-12)
+    norms = [r22_norm(rk, k) for k in range(rk.n + 1)]
+    assert np.all(np.diff(norms) <= 1e-12 * norms[0])     # non-increasing in k
+
+
+def test_paper_epsilon_rank_is_the_smallest_k_by_bisection(monkeypatch):
+    import facemotion.pivoted_qr as pq
+
+    A, labels = correlated(F=400, n=40, sources=6, noise=0.05, seed=8)
+    rk = rank_markers(A, labels)
+    calls = []
+    real = pq.spectral_norm
+    monkeypatch.setattr(pq, "spectral_norm", lambda M: calls.append(1) or real(M))
+    for eps in (1e-3, 0.5, 3.0, 30.0, 1e5):
+        calls.clear()
+        k, norm = paper_epsilon_rank(rk, eps, "per_coordinate")
+        brute = [kk for kk in range(rk.n + 1)
+                 if _projected_tail_norm(A, rk.order, kk) / np.sqrt(A.shape[0]) <= eps]
+        assert k == min(brute), eps
+        assert norm <= eps
+        assert len(calls) <= int(np.ceil(np.log2(rk.n + 1)))      # O(log n) 2-norms
+
+
+def test_normalisation_reading_on_the_papers_quoted_numbers():
+    """Fig. 2 of Lucero & Munhall: r56 = 22.70 mm, r57 = 0.10 mm (S1), epsilon = 0.5 mm.
+
+    With ~30 CID sentences of 2-3 s at 120 Hz, A has 3M ~ 20,000-35,000 rows.  Only the
+    unnormalised reading makes the 56th pivot's orthogonal component a possible size (an RMS
+    of 0.12-0.16 mm per coordinate: marker jitter); per row, 22.70 mm would be more than the
+    whole motion of the lower lip, the marker that moves most.  Under it the paper's test
+    ||R22||_2 = |r57| = 0.10 <= 0.5 gives epsilon-rank 56, read literally.
+    """
+    assert pq_default() == "none"
+    for rows in (20_000, 27_000, 35_000):
+        rms56 = implied_rms_per_coordinate(22.70, rows, "none")
+        assert 0.11 < rms56 < 0.17
+        assert implied_rms_per_coordinate(0.10, rows, "none") < 1e-3   # an exact copy
+        assert implied_rms_per_coordinate(22.70, rows, "per_coordinate") == pytest.approx(22.70)
+        assert implied_rms_per_coordinate(22.70, rows, "per_frame") > 10.0
+    # the paper's rank test, on an A whose R has the paper's last two diagonal values
+    rows, n = 3 * 9000, 57
+    rng = np.random.default_rng(0)
+    Q, _ = np.linalg.qr(rng.standard_normal((rows, n)))
+    diag = np.concatenate([np.geomspace(900.0, 30.0, n - 2), [22.70, 0.10]])
+    R = np.diag(diag) + np.triu(rng.normal(0, 0.01, (n, n)), 1) * diag[None, :]
+    R[-1, -2] = R[-2, -1] = 0.0
+    rk = rank_markers(Q @ R, [str(i) for i in range(1, n + 1)], method="tsqr")
+    np.testing.assert_allclose(rk.r[-2:], [22.70, 0.10], rtol=1e-6)
+    assert rk.r[-2] / rk.r[-1] == pytest.approx(227.0, rel=1e-5)
+    df = epsilon_rank(rk, [0.5])                       # default: the paper's reading
+    assert df.epsilon_rank[0] == 56 and df.r22_norm_at_rank_mm[0] == pytest.approx(0.10)
+    # per coordinate the same matrix has a much smaller epsilon-rank at 0.5 mm
+    assert epsilon_rank(rk, [0.5], normalisation="per_coordinate").epsilon_rank[0] < 56
+
+
+def pq_default():
+    from facemotion.pivoted_qr import DEFAULT_R_NORMALISATION
+
+    return DEFAULT_R_NORMALISATION
 
 
 def test_bad_input_errors_name_the_problem():

@@ -153,7 +153,8 @@ def _r_table(order, scale=1.0):
     n = len(order)
     r_rms = scale * np.geomspace(5.0, 0.2, n)
     return pd.DataFrame({"order": np.arange(1, n + 1), "marker": order, "r": r_rms * 10,
-                         "r_rms": r_rms})
+                         "r_rms": r_rms, "r_normalised": r_rms,
+                         "r_normalisation": "per_coordinate"})
 
 
 def test_r_values_figure(face):
@@ -163,6 +164,7 @@ def test_r_values_figure(face):
     (ax,) = fig.axes
     assert ax.get_yscale() == "log"
     assert "mm" in ax.get_ylabel() and "order" in ax.get_xlabel()
+    assert "sqrt(3M)" in ax.get_ylabel()       # the table's normalisation names the axis
     assert len(ax.get_lines()) == 2 + 3  # two datasets and three tolerance lines
     dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
     assert sorted(ln.get_ydata()[0] for ln in dashed) == [0.25, 0.5, 1.0]
@@ -194,9 +196,9 @@ def test_sentence_sweep_figure():
 
 def test_error_curves_figure():
     k = np.arange(1, 11)
-    a = pd.DataFrame({"k": k, "mean_abs_error_mm": 2.0 / k, "mean_rel_error": 0.5 / k,
+    a = pd.DataFrame({"k": k, "mean_abs_error_mm": 2.0 / k, "rel_error_per_marker": 0.5 / k,
                       "median_abs_error_mm": 1.5 / k, "max_abs_error_mm": 6.0 / k})
-    b = a[["k", "mean_abs_error_mm", "mean_rel_error"]].assign(mean_abs_error_mm=3.0 / k)
+    b = a[["k", "mean_abs_error_mm", "rel_error_per_marker"]].assign(mean_abs_error_mm=3.0 / k)
     fig = plot_error_curves({"S1": a, "AnimFace": b})
     ax_abs, ax_rel = fig.axes
     assert "mm" in ax_abs.get_ylabel() and "k" in ax_abs.get_xlabel()
@@ -205,7 +207,7 @@ def test_error_curves_figure():
     assert len(ax_rel.get_lines()) == 2
     np.testing.assert_allclose(ax_rel.get_lines()[1].get_ydata(), 0.5 / k)
     with pytest.raises(InputError, match="AnimFace"):
-        plot_error_curves({"AnimFace": b.drop(columns="mean_rel_error")})
+        plot_error_curves({"AnimFace": b.drop(columns="rel_error_per_marker")})
 
 
 def test_trajectory_figure():
@@ -222,6 +224,10 @@ def test_trajectory_figure():
         assert "(mm)" in ax.get_ylabel()
     assert axes[-1].get_xlabel() == "time (s)"
     assert "Chin" in fig.get_suptitle() and "s03" in fig.get_suptitle()
+    assert "main markers" not in fig.get_suptitle()
+    fig = plot_trajectory(t, measured, measured, marker="Chin", sentence="s03", k=10,
+                          in_basis=True)
+    assert "Chin is one of the 10 main markers" in fig.get_suptitle()
     with pytest.raises(InputError, match="Chin"):
         plot_trajectory(t, measured[:10], predicted, marker="Chin", sentence="s03", k=10)
 

@@ -35,7 +35,8 @@ def test_table_sidecar_records_inputs_config_and_checksums(tmp_path):
     prov = Provenance("rank_markers", {"params": {"k": 10}}, [str(inp)])
     out = tmp_path / "r_values.tsv"
     df = pd.DataFrame({"order": [1, 2], "marker": ["40", "56"], "r": [3.0, 2.0],
-                       "r_rms": [0.1, 0.2]})
+                       "r_rms": [0.1, 0.2], "r_rms_frame": [0.17, 0.35], "r_normalised": [3.0, 2.0],
+                       "r_normalisation": ["none", "none"]})
     side = write_table(df, out, "r_values", prov)
     assert side == sidecar_path(out) == tmp_path / "r_values.meta.json"
     meta = json.loads(side.read_text())

@@ -45,7 +45,8 @@ def test_top_k_frequency_counts_datasets():
 
 def test_manifest_lists_outputs_and_detects_tampering(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    df = pd.DataFrame({"order": [1], "marker": ["40"], "r": [1.0], "r_rms": [0.1]})
+    df = pd.DataFrame({"order": [1], "marker": ["40"], "r": [1.0], "r_rms": [0.1],
+                       "r_rms_frame": [0.17], "r_normalised": [1.0], "r_normalisation": ["none"]})
     write_table(df, "results/x/qr/r_values.tsv", "r_values", Provenance("rank_markers"))
     m = build_manifest("results")
     assert list(m["path"]) == ["results/x/qr/r_values.tsv"]

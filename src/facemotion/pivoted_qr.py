@@ -6,8 +6,25 @@ The displacement matrix A (3F x n, frame-major rows, one column per marker, mm) 
 
 The first pivot is the marker with the largest motion; each later pivot is the marker whose
 motion is least explained by the markers already chosen: |r_kk| is the norm of its component
-orthogonal to the span of the previous pivots.  ``r_rms = |r_kk| / sqrt(3F)`` is that component as
-an RMS displacement in mm, which is what the epsilon-rank compares with a tolerance in mm.
+orthogonal to the span of the previous pivots (a 2-norm of mm values, so in mm).
+
+Normalisation of R ("R values normalized to the size of R", Fig. 2).  ``R_NORMALISATIONS``:
+
+``"none"`` (default)
+    |r_kk| itself, the 2-norm (mm) of the pivot's orthogonal component, and ||R22||_2 compared
+    with epsilon as printed in Sec. III.  This is the only reading under which the paper's
+    r56 = 22.70 mm is a possible size for the 56th pivot (see the README's arithmetic).
+``"per_coordinate"``
+    |r_kk| / sqrt(3M): the RMS of that component per coordinate sample (``r_rms``).
+``"per_frame"``
+    |r_kk| / sqrt(M): its RMS 3-D size per frame.
+
+Epsilon-rank (Sec. III, eq. 1): partition R after k pivots, R22 = R[k:, k:]; the paper's
+epsilon-rank is the smallest k with ||R22||_2 <= epsilon (``epsilon_rank``), which bounds the
+singular values sigma_{k+1}(A) <= ||R22||_2 (Chan 1987).  Since R[k+1:, k+1:] is a submatrix of
+R[k:, k:], ||R22||_2 is non-increasing in k and a bisection needs only O(log n) 2-norms.  The
+older count of diagonal entries above epsilon is kept beside it (``diagonal_count``); it is never
+larger than the epsilon-rank, because |r_jj| <= ||R[k:, k:]||_2 for every k <= j.
 
 Three routes give the same pivots and the same |R| (up to the sign of each row of R, which we fix
 so that diag(R) >= 0):
@@ -55,6 +72,32 @@ STATIC_MM = 1e-12
 CHUNK_ROWS = 3 * 4096
 _EPS = np.finfo(float).eps
 METHODS = ("auto", "gram", "tsqr", "scipy")
+#: Readings of "R values normalized to the size of R" (Fig. 2); see the module notes.
+R_NORMALISATIONS = ("none", "per_coordinate", "per_frame")
+DEFAULT_R_NORMALISATION = "none"
+
+
+def r_scale(rows: int, normalisation: str = DEFAULT_R_NORMALISATION) -> float:
+    """The divisor applied to R (and R22) under a normalisation, for A with ``rows`` = 3M."""
+    if normalisation == "none":
+        return 1.0
+    if normalisation == "per_coordinate":
+        return float(np.sqrt(rows))             # RMS per coordinate sample
+    if normalisation == "per_frame":
+        return float(np.sqrt(rows / 3.0))       # RMS 3-D size per frame
+    raise InputError(f"r_normalisation: unknown normalisation {normalisation!r}; use one of "
+                     f"{', '.join(R_NORMALISATIONS)}")
+
+
+def implied_rms_per_coordinate(r_value: float, rows: int,
+                               normalisation: str = DEFAULT_R_NORMALISATION) -> float:
+    """The RMS per coordinate sample (mm) of a pivot's orthogonal component that an R value
+    quoted under ``normalisation`` implies for A with ``rows`` = 3M rows: r * scale / sqrt(3M).
+
+    E.g. the paper's r56 = 22.70 mm with 3M = 27,000: 0.14 mm under "none", 22.70 mm under
+    "per_coordinate", 13.1 mm under "per_frame" (README, "Normalisation of R").
+    """
+    return float(r_value) * r_scale(rows, normalisation) / float(np.sqrt(rows))
 
 
 @dataclass(frozen=True)
@@ -86,6 +129,10 @@ class MarkerRanking:
     @property
     def n(self) -> int:
         return len(self.labels)
+
+    def normalised_r(self, normalisation: str = DEFAULT_R_NORMALISATION) -> np.ndarray:
+        """|r_kk| under a normalisation of R (``R_NORMALISATIONS``), mm."""
+        return self.r / r_scale(self.rows, normalisation)
 
     def numerical_rank(self) -> int:
         """Number of pivots with r_kk > rtol * r_11 (R11 of that size is safely invertible)."""
@@ -302,11 +349,53 @@ def rank_markers(A, labels: Sequence[str] | None = None, method: str = "auto") -
     return rank_from_r0(R0, rows, labels)
 
 
-def epsilon_rank(ranking: MarkerRanking, tolerances_mm) -> pd.DataFrame:
-    """Epsilon-rank for each tolerance: the number of pivots with r_rms > tolerance (mm).
+def spectral_norm(M: np.ndarray) -> float:
+    """||M||_2, the largest singular value (0 for an empty matrix)."""
+    if M.size == 0:
+        return 0.0
+    return float(scipy.linalg.svdvals(M, check_finite=False)[0])
 
-    ``redundant_markers`` lists the other markers (comma-separated labels, pivot order): each is
-    reproduced by the earlier pivots to within the tolerance (RMS, mm).
+
+def r22_norm(ranking: MarkerRanking, k: int) -> float:
+    """||R22||_2 with R22 = R[k:, k:] (eq. 1), unnormalised (mm); 0 for k = n."""
+    if not 0 <= k <= ranking.n:
+        raise InputError(f"k: {k} is outside 0 <= k <= n = {ranking.n}")
+    return spectral_norm(ranking.R[k:, k:])
+
+
+def paper_epsilon_rank(ranking: MarkerRanking, epsilon: float,
+                       normalisation: str = DEFAULT_R_NORMALISATION) -> tuple[int, float]:
+    """The smallest k with ||R22||_2 <= epsilon (Sec. III), R under ``normalisation``.
+
+    Bisection over k: ||R[k:, k:]||_2 is non-increasing in k (a submatrix of the previous
+    block), so about log2(n + 1) 2-norms are computed.  Returns (k, ||R22||_2 at k), the norm
+    in the normalisation's units.
+    """
+    scale = r_scale(ranking.rows, normalisation)
+    lo, hi = 0, ranking.n                       # ||R[n:, n:]||_2 = 0 <= epsilon
+    norm_hi = 0.0
+    while lo < hi:
+        mid = (lo + hi) // 2
+        v = spectral_norm(ranking.R[mid:, mid:]) / scale
+        if v <= epsilon:
+            hi, norm_hi = mid, v
+        else:
+            lo = mid + 1
+    return lo, norm_hi
+
+
+RANK_COLUMNS = ["tolerance_mm", "r_normalisation", "epsilon_rank", "r22_norm_at_rank_mm",
+                "diagonal_count", "redundant_markers"]
+
+
+def epsilon_rank(ranking: MarkerRanking, tolerances_mm,
+                 normalisation: str = DEFAULT_R_NORMALISATION) -> pd.DataFrame:
+    """Epsilon-rank for each tolerance epsilon (mm), R under ``normalisation``.
+
+    Columns: ``epsilon_rank``, the paper's rule (smallest k with ||R22||_2 <= epsilon, Sec. III);
+    ``r22_norm_at_rank_mm``, ||R22||_2 at that k; ``diagonal_count``, the number of pivots with
+    normalised |r_kk| > epsilon (an older, looser reading, never larger); ``redundant_markers``,
+    the markers after the epsilon-rank in pivot order (comma-separated labels).
     """
     try:
         tols = np.atleast_1d(np.asarray(tolerances_mm, dtype=float)).ravel()
@@ -315,18 +404,18 @@ def epsilon_rank(ranking: MarkerRanking, tolerances_mm) -> pd.DataFrame:
     bad = tols[~(np.isfinite(tols) & (tols > 0))]
     if bad.size:
         raise InputError(f"tolerances_mm: tolerances must be positive finite mm, got {bad[0]!r}")
+    r = ranking.normalised_r(normalisation)
     out = []
     for tol in tols:
-        keep = ranking.r_rms > tol
-        # pivoted QR makes r_kk non-increasing, so the rank is a prefix of the pivot order
-        k = int(np.count_nonzero(keep))
+        k, norm = paper_epsilon_rank(ranking, float(tol), normalisation)
         out.append(
             {
                 "tolerance_mm": float(tol),
+                "r_normalisation": normalisation,
                 "epsilon_rank": k,
-                "redundant_markers": ",".join(
-                    lab for lab, kp in zip(ranking.labels_in_order, keep, strict=True) if not kp
-                ),
+                "r22_norm_at_rank_mm": norm,
+                "diagonal_count": int(np.count_nonzero(r > tol)),
+                "redundant_markers": ",".join(ranking.labels_in_order[k:]),
             }
         )
-    return pd.DataFrame(out, columns=["tolerance_mm", "epsilon_rank", "redundant_markers"])
+    return pd.DataFrame(out, columns=RANK_COLUMNS)

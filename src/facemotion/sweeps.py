@@ -53,9 +53,10 @@ def settled_after(sweep: pd.DataFrame, tolerance: float) -> int:
 
 
 def evaluate_point(train, held, point: dict, method: str = "auto", n_first: int = 10,
-                   settle_tolerance: float = 0.1) -> dict:
-    """One sweep point on one dataset (``train``/``held``: Displacements): epsilon-rank,
-    first pivots, held-out error at k, sentences for the first pivots to settle."""
+                   settle_tolerance: float = 0.1, r_normalisation: str = "none") -> dict:
+    """One sweep point on one dataset (``train``/``held``: Displacements): epsilon-rank (the
+    paper's rule, R under ``r_normalisation``), first pivots, held-out error at k, sentences
+    for the first pivots to settle."""
     # imported here so the workflow can expand grids at parse time without the numerics
     from facemotion.pivoted_qr import epsilon_rank, rank_markers
     from facemotion.prediction import error_curve
@@ -76,14 +77,16 @@ def evaluate_point(train, held, point: dict, method: str = "auto", n_first: int 
         raise InputError(f"sweep setting k={k} must be smaller than the number of markers ({n})")
     ranking = rank_markers(train.A, train.labels, method=method)
     tol = float(point["tolerance_mm"])
-    rank = epsilon_rank(ranking, [tol]).iloc[0]
+    rank = epsilon_rank(ranking, [tol], normalisation=r_normalisation).iloc[0]
     row = {
         "marker_subset": point.get("marker_subset") or "all",
         "n_markers": n,
         "tolerance_mm": tol,
         "k": k,
         "train_sentences": len(train.sentences),
+        "r_normalisation": r_normalisation,
         "epsilon_rank": int(rank["epsilon_rank"]),
+        "diagonal_count": int(rank["diagonal_count"]),
         "redundant_markers": rank["redundant_markers"],
         "first_pivots": ",".join(ranking.labels_in_order[:n_first]),
     }
@@ -96,10 +99,10 @@ def evaluate_point(train, held, point: dict, method: str = "auto", n_first: int 
     if held is not None:
         curve = error_curve(ranking, held.A, held.labels).set_index("k")
         row["heldout_mean_abs_error_mm"] = float(curve.loc[k, "mean_abs_error_mm"])
-        row["heldout_mean_rel_error"] = float(curve.loc[k, "mean_rel_error"])
+        row["heldout_rel_error_per_marker"] = float(curve.loc[k, "rel_error_per_marker"])
     else:
         row["heldout_mean_abs_error_mm"] = np.nan
-        row["heldout_mean_rel_error"] = np.nan
+        row["heldout_rel_error_per_marker"] = np.nan
     return row
 
 

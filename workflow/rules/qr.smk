@@ -30,6 +30,7 @@ rule rank_markers:
         label=lambda wc: DATASETS[wc.dataset].label,
         method=config["qr"]["method"],
         tolerances_mm=config["qr"]["tolerances_mm"],
+        r_normalisation=config["qr"]["r_normalisation"],
     script:
         "../../scripts/rank_markers.py"
 

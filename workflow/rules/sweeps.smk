@@ -23,6 +23,7 @@ rule run_sweep_point:
         label=lambda wc: DATASETS[wc.dataset].label,
         method=config["qr"]["method"],
         settle_tolerance=config["qr"]["settle_tolerance"],
+        r_normalisation=config["qr"]["r_normalisation"],
     script:
         "../../scripts/run_sweep_point.py"
 

@@ -18,10 +18,13 @@ _EXTRA = {"median_abs_error_mm": ("median", "--"), "rms_error_mm": ("rms", "-.")
 
 
 def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame]) -> Figure:
-    """Two panels against k (number of main markers): left the held-out mean absolute error
-    (mm; optional median / rms / max columns as thinner broken lines of the same colour),
-    right the mean relative error (a fraction, shown in %). Datasets overlaid."""
-    require_tables(df_by_dataset, ("k", "mean_abs_error_mm", "mean_rel_error"), "error curves")
+    """Paper Fig. 10, two panels against k (number of main markers): left (Fig. 10 top) the
+    held-out mean absolute error (mm; optional median / rms / max columns as thinner broken
+    lines of the same colour), right (Fig. 10 bottom) the relative error averaged over markers
+    (``rel_error_per_marker``, a fraction shown in %; the pooled ratio ``rel_error_pooled``, when
+    present, as a thin dotted line). Datasets overlaid."""
+    require_tables(df_by_dataset, ("k", "mean_abs_error_mm", "rel_error_per_marker"),
+                   "error curves")
     fig = Figure(figsize=(10.0, 4.2), layout="constrained")
     ax_abs, ax_rel = fig.subplots(1, 2)
     extras_used = []
@@ -36,8 +39,10 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame]) -> Figure:
                 ax_abs.plot(df["k"], df[col].where(df[col] > 0), color=c, ls=ls, lw=0.9)
                 if col not in extras_used:
                     extras_used.append(col)
-        ax_rel.plot(df["k"], df["mean_rel_error"], color=c, marker=m, ms=3.5, lw=1.4,
+        ax_rel.plot(df["k"], df["rel_error_per_marker"], color=c, marker=m, ms=3.5, lw=1.4,
                     label=name)
+        if "rel_error_pooled" in df.columns:
+            ax_rel.plot(df["k"], df["rel_error_pooled"], color=c, ls=":", lw=0.9)
         zk = df.loc[df["mean_abs_error_mm"] <= 0, "k"]
         if len(zk):
             zero_k.append(f"{name}: k = {', '.join(str(int(v)) for v in zk)}")
@@ -47,13 +52,13 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame]) -> Figure:
                     transform=ax_abs.transAxes, fontsize=7, color="0.3", va="bottom")
     ax_abs.set(xlabel="k (number of main markers)",
                ylabel="held-out 3-D error (mm, log scale)",
-               title="Absolute error of the predicted positions")
+               title="Absolute error (paper Fig. 10 top)")
     plain_log_labels(ax_abs.yaxis)
     ax_rel.yaxis.set_major_formatter(PercentFormatter(xmax=1.0))
     ax_rel.set_ylim(bottom=0)
     ax_rel.set(xlabel="k (number of main markers)",
-               ylabel="mean relative error (|error| / |displacement|)",
-               title="Relative error")
+               ylabel="relative error, mean over markers of\nmean |error| / mean |displacement|",
+               title="Relative error (paper Fig. 10 bottom; dotted: pooled)")
     for ax in (ax_abs, ax_rel):
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(True, which="major", alpha=0.3)
@@ -68,9 +73,12 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame]) -> Figure:
     return fig
 
 
-def plot_trajectory(time_s, measured, predicted, marker: str, sentence: str, k: int) -> Figure:
-    """x, y and z displacement (mm) of one marker over a held-out sentence: measured and
-    predicted from the k main markers, three stacked panels sharing the time axis."""
+def plot_trajectory(time_s, measured, predicted, marker: str, sentence: str, k: int,
+                    in_basis: bool = False, note: str | None = None) -> Figure:
+    """Paper Fig. 9: x, y and z displacement (mm) of one marker over a held-out sentence,
+    measured and predicted from the k main markers, three stacked panels sharing the time
+    axis. ``in_basis``: the marker is one of the k main markers (the model copies it; the
+    figure says so). ``note``: a further line under the title (e.g. why this marker)."""
     t = np.asarray(time_s, dtype=float)
     measured = np.asarray(measured, dtype=float)
     predicted = np.asarray(predicted, dtype=float)
@@ -92,5 +100,12 @@ def plot_trajectory(time_s, measured, predicted, marker: str, sentence: str, k: 
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8, loc="upper right", ncols=2)
     axes[-1].set_xlabel("time (s)")
-    fig.suptitle(f"Marker {marker}, held-out sentence {sentence}: displacement from neutral")
+    title = (f"Marker {marker}, held-out sentence {sentence}, basis of {k} markers: "
+             "displacement from neutral")
+    if in_basis:
+        title += (f"\nmarker {marker} is one of the {k} main markers: the model copies it, "
+                  "so its error is zero")
+    if note:
+        title += f"\n({note})"
+    fig.suptitle(title, color="#BB0000" if in_basis else "black")
     return fig

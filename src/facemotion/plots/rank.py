@@ -1,4 +1,4 @@
-"""Rank of the markers: r_rms of each pivot against its order (paper Fig. 2)."""
+"""Rank of the markers: |r_kk| of each pivot against its order (paper Fig. 2)."""
 
 from __future__ import annotations
 
@@ -11,18 +11,29 @@ from matplotlib.figure import Figure
 from facemotion.plots.facemap import HALO
 from facemotion.plots.style import MARKERS, colour, plain_log_labels, require_tables
 
+#: y-axis label per normalisation of R (the ``r_normalisation`` column of r_values.tsv)
+_NORM_LABEL = {
+    "none": "|r_kk|, 2-norm of the orthogonal component (mm, log scale)",
+    "per_coordinate": "|r_kk| / sqrt(3M), RMS per coordinate (mm, log scale)",
+    "per_frame": "|r_kk| / sqrt(M), RMS 3-D per frame (mm, log scale)",
+}
+#: below this fraction of a dataset's largest value, r_kk is numerically zero (an exact copy)
+NUMERICAL_ZERO = 1e-9
+
 
 def plot_r_values(tables: Mapping[str, pd.DataFrame],
                   tolerances: Sequence[float] = (0.25, 0.5, 1.0),
-                  annotate_below: float = 0.5, max_annotations: int = 3) -> Figure:
-    """r_rms (mm) of the pivots against pivot order, datasets overlaid, log y axis.
+                  annotate_below: float = 0.5, max_annotations: int = 3,
+                  column: str = "r_normalised") -> Figure:
+    """|r_kk| of the pivots (``column``, mm) against pivot order, datasets overlaid, log y.
 
-    Dashed horizontal lines mark the epsilon tolerances; the epsilon-rank at a tolerance is the
-    number of pivots above its line. For each dataset the last ``max_annotations`` pivots whose
-    r_rms is below ``annotate_below`` mm (the markers best explained by the others) are
-    labelled with their marker label.
+    Dashed horizontal lines mark the epsilon tolerances (|r_kk| <= ||R22||_2, so a pivot below
+    a line is necessary, not sufficient, for the epsilon-rank to stop before it). Values below
+    ``NUMERICAL_ZERO`` times the dataset's largest are listed as numerically zero instead of
+    stretching the log axis. For each dataset the last ``max_annotations`` pivots below
+    ``annotate_below`` mm (the markers best explained by the others) are labelled.
     """
-    require_tables(tables, ("order", "marker", "r_rms"), "r values")
+    require_tables(tables, ("order", "marker", column), "r values")
     fig = Figure(figsize=(7.0, 4.6), layout="constrained")
     ax = fig.subplots()
     n_max = 1
@@ -31,11 +42,11 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     for d, (name, df) in enumerate(tables.items()):
         df = df.sort_values("order")
         order = df["order"].to_numpy(dtype=int)
-        r = df["r_rms"].to_numpy(dtype=float)
+        r = df[column].to_numpy(dtype=float)
         markers = df["marker"].astype(str).to_numpy()
         n_max = max(n_max, int(order.max()))
         c = colour(d)
-        positive = r > 0
+        positive = r > NUMERICAL_ZERO * max(float(np.max(r)), 0.0)
         ax.plot(order, np.where(positive, r, np.nan), marker=MARKERS[d % len(MARKERS)], ms=3.5,
                 lw=1.2, color=c, label=f"{name} ({len(order)} markers)")
         if (~positive).any():
@@ -59,11 +70,15 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     if lows:
         ax.set_ylim(bottom=min(min(lows), min(tolerances, default=1.0)) / 2)
     if zeros:
-        ax.text(0.99, 0.02, "r_rms = 0 (not on the log axis): " + "; ".join(zeros),
+        ax.text(0.99, 0.02, "numerically 0 (not on the log axis): " + "; ".join(zeros),
                 transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.3")
     ax.set_xlim(0.5, n_max + 0.5)
     ax.set_xlabel("pivot order (marker selected at step i of QR with column pivoting)")
-    ax.set_ylabel("r_rms of the pivot (mm, log scale)")
+    norms = {str(v) for df in tables.values() if "r_normalisation" in df.columns
+             for v in df["r_normalisation"].unique()}
+    ylabel = (_NORM_LABEL.get(norms.pop(), column) if len(norms) == 1
+              else f"{column} (mm, log scale)")
+    ax.set_ylabel(ylabel)
     ax.set_title("Independent motion of each pivot marker (diagonal of R)")
     ax.grid(True, which="major", alpha=0.3)
     plain_log_labels(ax.yaxis)
