@@ -1,5 +1,7 @@
 """Readers and writers: round trips, independent files (raw ezc3d, hand-written text), errors."""
 
+import os
+
 import ezc3d
 import numpy as np
 import pytest
@@ -68,9 +70,21 @@ def test_c3d_written_by_raw_ezc3d_in_cm(tmp_path):
     assert rec.labels == ["Chin", "Mouth_Up", "ForeHead_M"]
     assert rec.rate == 60.0
     np.testing.assert_allclose(rec.points, 10 * xyz, rtol=1e-6)
-    # the units argument overrides the file's
-    np.testing.assert_allclose(read_c3d(tmp_path / "cm.c3d", units="m").points, 1000 * xyz,
-                               rtol=1e-6)
+    assert (rec.units, rec.units_source) == ("cm", "file")
+    # the file's own units win over the sheet's (validation reports the conflict)
+    back = read_c3d(tmp_path / "cm.c3d", units="m")
+    np.testing.assert_allclose(back.points, 10 * xyz, rtol=1e-6)
+    assert (back.units, back.units_source) == ("cm", "file")
+
+
+def test_c3d_without_units_takes_the_sheets(tmp_path):
+    xyz = np.arange(2 * 2 * 3, dtype=float).reshape(2, 2, 3) + 1
+    raw_c3d(tmp_path / "n.c3d", ["a", "b"], xyz, 100.0, units="")
+    with pytest.raises(InputError, match=r"n\.c3d.*POINT:UNITS is missing"):
+        read_c3d(tmp_path / "n.c3d")
+    rec = read_c3d(tmp_path / "n.c3d", units="cm")
+    np.testing.assert_allclose(rec.points, 10 * xyz, rtol=1e-6)
+    assert (rec.units, rec.units_source) == ("cm", "sheet")
 
 
 @pytest.mark.parametrize("unit,factor", [("mm", 1.0), ("m", 1000.0), ("in", 25.4)])
@@ -133,7 +147,7 @@ HAND_TRC = (
     "\n"
     "1\t0.00000\t0.1\t0.2\t0.3\t1.0\t2.0\t3.0\n"
     "2\t0.04000\t0.1\t0.2\t0.3\t\t\t\n"
-    "3\t0.08000\t0.4\t0.5\t0.6\n"  # trailing missing marker cut off
+    "3\t0.08000\t0.4\t0.5\t0.6\t\t\t\t\n"  # a trailing empty field beyond the last: allowed
 )
 
 
@@ -146,16 +160,34 @@ def test_trc_hand_written(tmp_path):
                          [[100, 200, 300], [np.nan] * 3],
                          [[400, 500, 600], [np.nan] * 3]], dtype=float)
     np.testing.assert_allclose(rec.points, expected, equal_nan=True)
-    # units override: the numbers are taken as mm
+    # the header's units win over the sheet's
     np.testing.assert_allclose(read_trc(tmp_path / "hand.trc", units="mm").points,
-                               expected / 1000, equal_nan=True)
+                               expected, equal_nan=True)
+    # no Units in the header: the sheet's apply
+    (tmp_path / "nounits.trc").write_text(HAND_TRC.replace("\t3\t2\tm\t", "\t3\t2\t\t"))
+    with pytest.raises(InputError, match=r"nounits\.trc.*no Units"):
+        read_trc(tmp_path / "nounits.trc")
+    np.testing.assert_allclose(read_trc(tmp_path / "nounits.trc", units="cm").points,
+                               expected / 100, equal_nan=True)
 
 
 @pytest.mark.parametrize("bad,match", [
     (("\t3\t2\tm", "\t4\t2\tm"), "NumFrames=4"),
     (("\t3\t2\tm", "\t3\t3\tm"), "NumMarkers=3"),
     (("\t3\t2\tm", "\t3\t2\tparsec"), "parsec"),
-    (("0.4\t0.5", "0.4\tabc"), "abc"),
+    (("0.4\t0.5", "0.4\tabc"), "'abc'.*line 9 field 4"),
+    # a field (and its tab) missing: every later value would move to another axis
+    (("0.1\t0.2\t0.3\t1.0", "0.1\t0.3\t1.0"), "line 7 has 7 fields.*declares 8"),
+    (("0.6\t\t\t\t\n", "0.6\n"), "line 9 has 5 fields"),
+    (("2\t0.04000\t0.1\t0.2\t0.3\t\t\t\n", ""), "NumFrames=3.*2 data lines"),
+    (("0.6\t\t\t\t\n", "0.6\t\t\t\tx\n"), "line 9 has 9 fields"),
+    # the file ends inside its last line
+    (("0.6\t\t\t\t\n", "0.6\t\t\t\t"), "line 9, the last one, has no line end"),
+    # time off the DataRate grid: a dropped, repeated or reordered line
+    (("2\t0.04000", "2\t0.08000"), "line 8: Time 0.08.*grid"),
+    (("3\t0.08000", "2\t0.08000"), "line 9: Frame# 2 does not follow 2"),
+    (("25.00\t25.00\t3", "50.00\t50.00\t3"), "line 8: Time 0.04.*50 Hz"),
+    (("\t3\t2\tm", "\t3.5\t2\tm"), "not numeric"),
 ])
 def test_trc_errors(tmp_path, bad, match):
     (tmp_path / "bad.trc").write_text(HAND_TRC.replace(*bad))
@@ -203,3 +235,98 @@ def test_csv_bad_header(tmp_path, header, match):
                                     + ",".join(["0.1"] * (n + 1)) + "\n")
     with pytest.raises(InputError, match=r"b\.csv.*" + match):
         read_csv(tmp_path / "b.csv")
+
+
+def test_csv_row_with_a_field_missing(tmp_path):
+    good = "time,a_x,a_y,a_z,b_x,b_y,b_z\n0,1,2,3,4,5,6\n0.01,1,2,3,,,\n0.02,1,2,3,4,5,6\n"
+    (tmp_path / "f.csv").write_text(good.replace("0.01,1,2,3,,,", "0.01,1,2,3,,"))
+    with pytest.raises(InputError, match=r"f\.csv: line 3 has 6 fields but the header has 7"):
+        read_csv(tmp_path / "f.csv")
+    (tmp_path / "g.csv").write_text(good.replace("0.01,1,2,3,,,", "0.01,1,2,3,,,,"))
+    with pytest.raises(InputError, match=r"g\.csv: line 3 has 8 fields"):
+        read_csv(tmp_path / "g.csv")
+    (tmp_path / "h.csv").write_text(good[:-1])  # the last line cut
+    with pytest.raises(InputError, match=r"h\.csv: line 4, the last one, has no line end"):
+        read_csv(tmp_path / "h.csv")
+
+
+def test_messages_quote_only_a_short_token(tmp_path):
+    secret = "root:$6$abcdefghijklmnopqrstuvwxyz0123456789:19000:0:99999:7:::"
+    (tmp_path / "shadow").write_text(secret + "\n" + secret + "\n")
+    with pytest.raises(InputError) as e:
+        read_csv(tmp_path / "shadow")
+    msg = str(e.value)
+    assert "first column must be 'time'" in msg and "\n" not in msg
+    assert secret[:20] not in msg and "'root:$6$abcdefgh...'" in msg
+    trc = HAND_TRC.replace("0.4\t0.5", "0.4\t" + secret.replace(":", ""))
+    (tmp_path / "s.trc").write_text(trc)
+    with pytest.raises(InputError) as e:
+        read_trc(tmp_path / "s.trc")
+    assert secret.replace(":", "")[:20] not in str(e.value)
+
+
+def test_directory_is_not_a_recording(tmp_path):
+    (tmp_path / "takes.trc").mkdir()
+    with pytest.raises(InputError, match=r"takes\.trc: is a directory, not a recording file"):
+        read_recording(tmp_path / "takes.trc", "trc")
+
+
+# ------------------------------------------------------------------------------ C3D truncation
+
+def test_c3d_layout_matches_ezc3d_on_real_files():
+    """The header/parameter parse against ezc3d's, on every C3D variant of the shared data
+    (Intel and DEC, integer and float storage, analog channels, first frame > 1)."""
+    from pathlib import Path
+
+    from facemotion.readers import c3d_layout
+
+    root = Path(os.environ.get("FACEMOTION_SHARED_DATA",
+                               Path(__file__).resolve().parents[2] / "shared" / "data"))
+    files = sorted(root.glob("*/*.c3d"))
+    assert len(files) >= 8
+    for f in files:
+        c = ezc3d.c3d(str(f))
+        lay = c3d_layout(f)
+        P = c["parameters"]
+        assert lay.frames == c["data"]["points"].shape[2]
+        assert lay.points == c["data"]["points"].shape[1]
+        n_analog = c["data"]["analogs"].shape[1] * c["data"]["analogs"].shape[2]
+        assert lay.analog_per_frame * lay.frames == n_analog
+        assert lay.float_storage == (float(P["POINT"]["SCALE"]["value"][0]) < 0)
+        assert lay.data_start == (int(P["POINT"]["DATA_START"]["value"][0]) - 1) * 512
+        assert lay.size <= f.stat().st_size < lay.size + 512
+
+
+@pytest.mark.parametrize("name", ["animface/animface_jaw.c3d",
+                                  "c3d_suite/c3dorg_sample01_Eb015pi.c3d",
+                                  "c3d_suite/c3dorg_sample02_dec_int.c3d",
+                                  "c3d_suite/ktk_tennis_serve_2players.c3d"])
+@pytest.mark.parametrize("cut", [1, 700, 5000])
+def test_truncated_c3d_is_an_error(tmp_path, name, cut):
+    from pathlib import Path
+
+    from facemotion.readers import c3d_layout
+
+    root = Path(os.environ.get("FACEMOTION_SHARED_DATA",
+                               Path(__file__).resolve().parents[2] / "shared" / "data"))
+    raw = (root / name).read_bytes()
+    padding = len(raw) - c3d_layout(root / name).size
+    (tmp_path / "cut.c3d").write_bytes(raw[:-cut])
+    if cut <= padding:  # only padding lost: the same data
+        np.testing.assert_array_equal(read_c3d(tmp_path / "cut.c3d").points,
+                                      read_c3d(root / name).points)
+    else:
+        with pytest.raises(InputError, match=r"cut\.c3d: C3D file is cut short.*bytes"):
+            read_c3d(tmp_path / "cut.c3d")
+
+
+def test_c3d_with_more_frames_than_declared(tmp_path):
+    rec = sample_recording(F=20)
+    write_c3d(tmp_path / "a.c3d", rec)
+    raw = (tmp_path / "a.c3d").read_bytes()
+    (tmp_path / "b.c3d").write_bytes(raw + bytes(2048))
+    with pytest.raises(InputError, match=r"b\.c3d: C3D file holds .* bytes after the 20 frames"):
+        read_c3d(tmp_path / "b.c3d")
+    long = Recording(["a", "b"], np.zeros((65536, 2, 3)), 100.0)
+    with pytest.raises(InputError, match="65536 frames cannot be written to C3D"):
+        write_c3d(tmp_path / "long.c3d", long)

@@ -1,5 +1,7 @@
 """Errors raised on bad input: each message names the file, marker or setting at fault."""
 
+TOKEN_CHARS = 16
+
 
 class FacemotionError(Exception):
     """Base class of every error the package raises on purpose."""
@@ -7,3 +9,16 @@ class FacemotionError(Exception):
 
 class InputError(FacemotionError, ValueError):
     """Bad input data or settings; the message says which and what is wrong."""
+
+
+def token(value, limit: int = TOKEN_CHARS) -> str:
+    """A short, quoted, printable form of a value read from a file, for an error message.
+
+    Messages name the file and the place (line, column, frame); they never echo a file's content
+    beyond such a token: at most ``limit`` characters, non-printable ones escaped, '...' when cut.
+    """
+    text = str(value)
+    cut = len(text) > limit
+    text = text[:limit]
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    return repr(text + "...") if cut else repr(text)

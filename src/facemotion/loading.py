@@ -20,7 +20,7 @@ from facemotion.displacements import (
 from facemotion.errors import InputError
 from facemotion.gaps import fill_gaps
 from facemotion.head_motion import align_head
-from facemotion.readers import read_recording
+from facemotion.readers import read_recording, unit_scale
 
 log = logging.getLogger("facemotion")
 
@@ -69,7 +69,12 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     recs = []
     for i, p in enumerate(paths):
         log.info("reading %s (%d/%d)", p, i + 1, len(paths))
-        recs.append(read_recording(p, fmt, units=units))
+        rec = read_recording(p, fmt, units=units)
+        if units is not None and rec.units_source == "file" \
+                and unit_scale(units, p) != unit_scale(rec.units, p):
+            log.warning("%s: the file says its units are %r, the subject sheet says %r: the "
+                        "file's units are used", p, rec.units, units)
+        recs.append(rec)
     for rec in recs[1:]:
         check_same_take_layout(rec, recs[0])
     labels = recs[0].labels

@@ -4,20 +4,35 @@ Every reader returns a :class:`~facemotion.recording.Recording` in millimetres w
 missing samples. A marker that is missing in every frame is kept (all NaN); the gap check
 (:mod:`facemotion.gaps`) reports it. Writers write to a temporary file in the target directory
 and rename it, so a failed write never leaves a half-written file behind.
+
+Units: a file that states its units (C3D ``POINT:UNITS``, the TRC header's ``Units``) is read in
+them; the ``units`` argument (the subject sheet's) only applies to a file that does not say
+(a CSV, or a C3D/TRC without units). The recording keeps the units used and where they came
+from; :mod:`facemotion.validation` reports a sheet that disagrees with the file.
+
+The readers are strict about layout, because a file that is cut short or has a field missing
+can otherwise read back as a plausible, different recording: a C3D shorter than its header and
+parameters declare, a TRC or CSV data line with fewer fields than the header, a text file whose
+last line has no line end (cut off), a TRC time column off the DataRate grid are all errors
+naming the file and the line. Messages never quote a file's content beyond a short token.
 """
 
 from __future__ import annotations
 
 import contextlib
+import csv
+import io
 import math
 import os
+import struct
 import tempfile
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, token
 from facemotion.recording import Recording
 
 FORMATS = ("c3d", "trc", "csv")
@@ -35,12 +50,15 @@ def unit_scale(unit: str, where: str) -> float:
     """Millimetres per ``unit`` (mm, cm, m, in); InputError naming ``where`` otherwise."""
     key = str(unit).strip().lower()
     if key not in _MM_PER_UNIT:
-        raise InputError(f"{where}: unknown units {unit!r} (supported: mm, cm, m, in)")
+        raise InputError(f"{where}: unknown units {token(unit)} (supported: mm, cm, m, in)")
     return _MM_PER_UNIT[key]
 
 
 def read_recording(path, fmt: str, units: str | None = None) -> Recording:
-    """Read one take in format ``fmt`` ("c3d", "trc" or "csv"); ``units`` overrides the file's."""
+    """Read one take in format ``fmt`` ("c3d", "trc" or "csv").
+
+    ``units`` (the subject sheet's) applies only when the file does not state its own.
+    """
     fmt_key = str(fmt).strip().lower()
     readers = {"c3d": read_c3d, "trc": read_trc, "csv": read_csv}
     if fmt_key not in readers:
@@ -52,6 +70,8 @@ def _check_readable(path) -> Path:
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: file not found")
+    if p.is_dir():
+        raise InputError(f"{p}: is a directory, not a recording file")
     if not p.is_file():
         raise InputError(f"{p}: not a regular file")
     if not os.access(p, os.R_OK):
@@ -78,22 +98,150 @@ def _atomic_path(path) -> Iterator[Path]:
 
 # ----------------------------------------------------------------------------------------- C3D
 
+_C3D_PROCESSORS = {84: "Intel", 85: "DEC", 86: "MIPS"}
+C3D_MAX_FRAMES = 65535  # ezc3d writes the frame count as a 16-bit word
+
+
+@dataclass
+class C3DLayout:
+    """What a C3D file's header (and parameters) declare about its data section."""
+
+    processor: str          # Intel, DEC or MIPS (byte order and float format)
+    points: int             # 3-D points per frame
+    analog_per_frame: int   # analog samples per 3-D frame (all channels)
+    first_frame: int
+    last_frame: int
+    frames: int
+    float_storage: bool     # POINT:SCALE < 0: 4-byte floats, else 2-byte integers
+    data_start: int         # byte offset of the data section
+
+    @property
+    def data_bytes(self) -> int:
+        """Bytes of the data section: frames x (4 words per point + analog samples)."""
+        word = 4 if self.float_storage else 2
+        return self.frames * (4 * self.points + self.analog_per_frame) * word
+
+    @property
+    def size(self) -> int:
+        """The smallest file size that holds every declared frame."""
+        return self.data_start + self.data_bytes
+
+
+def _c3d_float(raw: bytes, processor: str) -> float:
+    if processor == "DEC":  # VAX F-float: 16-bit words swapped, exponent bias 2 more than IEEE
+        return struct.unpack("<f", raw[2:4] + raw[0:2])[0] / 4.0
+    return struct.unpack(">f" if processor == "MIPS" else "<f", raw)[0]
+
+
+def _c3d_parameter(section: bytes, processor: str, group: str, name: str):
+    """First value of parameter GROUP:NAME from a C3D parameter section (None if absent)."""
+    end = ">" if processor == "MIPS" else "<"
+    pos, groups, params = 4, {}, {}
+    while pos + 2 <= len(section):
+        nchars, ident = struct.unpack("bb", section[pos:pos + 2])
+        if nchars == 0:
+            break
+        key = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1").strip().upper()
+        off_at = pos + 2 + abs(nchars)
+        if off_at + 2 > len(section):
+            break
+        (offset,) = struct.unpack(end + "h", section[off_at:off_at + 2])
+        body = off_at + 2
+        if ident < 0:
+            groups[key] = -ident
+        elif body + 2 <= len(section):
+            dtype, ndim = struct.unpack("bb", section[body:body + 2])
+            params[(ident, key)] = (dtype, section[body + 2 + ndim:body + 2 + ndim + 4])
+        if offset <= 0:
+            break
+        pos = off_at + offset
+    found = params.get((groups.get(group.upper()), name.upper()))
+    if found is None:
+        return None
+    dtype, raw = found
+    if dtype == 2 and len(raw) >= 2:
+        return struct.unpack(end + "H", raw[:2])[0]
+    if dtype == 4 and len(raw) >= 4:
+        return _c3d_float(raw[:4], processor)
+    if dtype == 1 and raw:
+        return raw[0]
+    return None
+
+
+def c3d_layout(path) -> C3DLayout:
+    """Read the layout a C3D file declares: its 512-byte header, and POINT:FRAMES when the
+    header's 16-bit frame numbers cannot hold the count (the C3D User Guide's convention)."""
+    p = Path(path)
+    with open(p, "rb") as fh:
+        head = fh.read(512)
+        if len(head) < 512 or head[1] != 0x50:
+            raise InputError(f"{p}: not a C3D file (no valid 512-byte header)")
+        fh.seek((head[0] - 1) * 512)
+        section = fh.read(255 * 512)
+    if len(section) < 4 or section[3] not in _C3D_PROCESSORS:
+        raise InputError(f"{p}: C3D parameter section is missing or cut short "
+                         f"(processor type byte {section[3] if len(section) > 3 else None})")
+    section = section[:max(section[2], 1) * 512]
+    processor = _C3D_PROCESSORS[section[3]]
+    end = ">" if processor == "MIPS" else "<"
+    points, analog, first, last = struct.unpack(end + "4H", head[2:10])
+    # sign of the scale factor (a float in the processor's format; only its sign bit matters)
+    sign_byte = {"Intel": head[15], "DEC": head[13], "MIPS": head[12]}[processor]
+    float_storage = bool(sign_byte & 0x80)
+    (start_block,) = struct.unpack(end + "H", head[16:18])
+    frames = last - first + 1
+    if last == 0xFFFF or frames <= 0:
+        declared = _c3d_parameter(section, processor, "POINT", "FRAMES")
+        if declared is not None:
+            frames = int(declared)
+    return C3DLayout(processor, points, analog, first, last, max(frames, 0), float_storage,
+                     (max(start_block, 1) - 1) * 512)
+
+
+def check_c3d_size(path) -> C3DLayout:
+    """InputError if the file is shorter than its header declares (cut in the data section,
+    or its last bytes lost); ezc3d would otherwise read it with frames silently missing."""
+    p = Path(path)
+    layout = c3d_layout(p)
+    size = p.stat().st_size
+    if size < layout.size:
+        per_frame = max(layout.data_bytes // max(layout.frames, 1), 1)
+        whole = max(size - layout.data_start, 0) // per_frame
+        raise InputError(
+            f"{p}: C3D file is cut short: its header declares frames {layout.first_frame}-"
+            f"{layout.first_frame + layout.frames - 1} ({layout.frames} frames) of "
+            f"{layout.points} points and {layout.analog_per_frame} analog samples per frame in "
+            f"{'float' if layout.float_storage else 'integer'} storage, {layout.size} bytes, "
+            f"but the file has {size} bytes (only {whole} whole frames)")
+    per_frame = layout.data_bytes // max(layout.frames, 1)
+    # writers pad the data to whole 512-byte blocks (ezc3d adds a whole block when it is full)
+    if per_frame and size - layout.size > 512 and size - layout.size >= per_frame:
+        raise InputError(
+            f"{p}: C3D file holds {size - layout.size} bytes after the {layout.frames} frames "
+            f"its header declares (about {(size - layout.size) // per_frame} more frames): the "
+            "header's frame count is wrong (e.g. more than 65535 frames)")
+    return layout
+
+
 def read_c3d(path, units: str | None = None) -> Recording:
     """Read the 3-D points of a C3D file with ezc3d.
 
     Labels come from POINT:LABELS (whitespace stripped), the rate from POINT:RATE and the units
-    from POINT:UNITS (``units`` overrides). A sample is missing (NaN) if its residual is
-    negative (C3D's "invalid" flag), if any coordinate is NaN, or if it is exactly (0, 0, 0)
-    with a residual that is not positive (the exporters' other way of writing "no data").
+    from POINT:UNITS (``units`` only for a file without them). The file's size is checked
+    against its header first (:func:`check_c3d_size`). A sample is missing (NaN) if its
+    residual is negative (C3D's "invalid" flag), if any coordinate is NaN, or if it is exactly
+    (0, 0, 0) with a residual that is not positive (the exporters' other way of writing
+    "no data").
     """
     import ezc3d
 
     p = _check_readable(path)
+    check_c3d_size(p)
     try:
         c = ezc3d.c3d(str(p))
     except Exception as e:  # ezc3d raises RuntimeError/IOError with terse messages
         raise InputError(f"{p}: cannot read as C3D ({type(e).__name__}: "
-                         f"{str(e).splitlines()[0] if str(e) else 'no detail'})") from None
+                         f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})") from None
     point = c["parameters"]["POINT"]
     data = np.asarray(c["data"]["points"], dtype=float)  # (4, markers, frames)
     n = data.shape[1]
@@ -111,13 +259,15 @@ def read_c3d(path, units: str | None = None) -> Recording:
         raise InputError(f"{p}: point(s) {empty[:5]} have an empty label in POINT:LABELS")
     rate_v = np.ravel(point["RATE"]["value"]) if "RATE" in point else np.array([])
     rate = float(rate_v[0]) if rate_v.size else float(c["header"]["points"]["frame_rate"])
-    if units is None:
-        u = point["UNITS"]["value"] if "UNITS" in point else []
-        u = [str(x).strip() for x in u] if not isinstance(u, str) else [u.strip()]
-        if not u or not u[0]:
-            raise InputError(f"{p}: POINT:UNITS is missing; give the units in the settings")
-        units = u[0]
-    scale = unit_scale(units, f"{p} (POINT:UNITS)")
+    u = point["UNITS"]["value"] if "UNITS" in point else []
+    u = [str(x).strip() for x in u] if not isinstance(u, str) else [u.strip()]
+    if u and u[0]:
+        used, source = u[0], "file"
+    elif units is not None:
+        used, source = units, "sheet"
+    else:
+        raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
+    scale = unit_scale(used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
     xyz = data[:3].transpose(2, 1, 0) * scale  # (frames, markers, 3)
     meta = c["data"].get("meta_points", {})
     if "residuals" in meta and np.size(meta["residuals"]):
@@ -127,13 +277,16 @@ def read_c3d(path, units: str | None = None) -> Recording:
     invalid = (residual < 0) | ~np.isfinite(xyz).all(axis=2)
     invalid |= (xyz == 0).all(axis=2) & ~(residual > 0)
     xyz[invalid] = np.nan
-    return Recording(labels, xyz, rate, source=str(p))
+    return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
 
 
 def write_c3d(path, rec: Recording) -> None:
     """Write the points of ``rec`` to a C3D file (mm; residual -1 where a sample is NaN)."""
     import ezc3d
 
+    if rec.n_frames > C3D_MAX_FRAMES:
+        raise InputError(f"{path}: {rec.n_frames} frames cannot be written to C3D (ezc3d "
+                         f"writes at most {C3D_MAX_FRAMES}); write TRC or CSV")
     c = ezc3d.c3d()
     c["parameters"]["POINT"]["RATE"]["value"] = [float(rec.rate)]
     c["parameters"]["POINT"]["LABELS"]["value"] = tuple(rec.labels)
@@ -158,78 +311,147 @@ def _split_line(line: str) -> list[str]:
     return line.rstrip("\r\n").split("\t")
 
 
+def check_last_line_ended(path, lines: list[str]) -> None:
+    """InputError if the text's last non-blank line has no line end (the file was cut)."""
+    for i in range(len(lines) - 1, -1, -1):
+        if lines[i].strip(" \r\n"):
+            if not lines[i].endswith("\n"):
+                raise InputError(f"{path}: line {i + 1}, the last one, has no line end: the "
+                                 "file looks cut short")
+            return
+
+
+def check_trc_fields(path, line_numbers, n_fields, ncol: int, extra_nonempty=None) -> None:
+    """The TRC rule for data lines, for any TRC parser: exactly ``ncol`` tab-separated fields.
+
+    ``line_numbers`` (1-based), ``n_fields`` (fields of each data line) and, optionally,
+    ``extra_nonempty`` (True where a line with more than ``ncol`` fields has text beyond them)
+    are arrays over the data lines. A line with fewer fields is an error, because every later
+    value would move to another axis or marker; a missing sample is an empty field between
+    tabs. Trailing empty fields beyond ``ncol`` are allowed (some writers end lines with a tab).
+    """
+    n_fields = np.asarray(n_fields)
+    short = np.flatnonzero(n_fields < ncol)
+    if short.size:
+        i = int(short[0])
+        raise InputError(f"{path}: line {int(line_numbers[i])} has {int(n_fields[i])} fields but "
+                         f"the header declares {ncol} (frame, time, x y z per marker); a "
+                         "missing sample must be empty fields between tabs")
+    if extra_nonempty is not None:
+        extra = np.flatnonzero(np.asarray(extra_nonempty, dtype=bool) & (n_fields > ncol))
+        if extra.size:
+            i = int(extra[0])
+            raise InputError(f"{path}: line {int(line_numbers[i])} has {int(n_fields[i])} "
+                             f"fields but the header declares {ncol}")
+
+
+def check_trc_time(path, line_numbers, frame_numbers, times, rate: float) -> None:
+    """Frame numbers increase and the Time column lies on the 1/DataRate grid.
+
+    A time more than a quarter of a frame off ``t0 + i / rate`` (a dropped, repeated or
+    reordered line, or a DataRate that does not match the data) is an error naming the line.
+    """
+    frame_numbers = np.asarray(frame_numbers, dtype=float)
+    times = np.asarray(times, dtype=float)
+    bad = np.flatnonzero(~np.isfinite(frame_numbers) | ~np.isfinite(times))
+    if bad.size:
+        i = int(bad[0])
+        raise InputError(f"{path}: line {int(line_numbers[i])}: Frame# and Time must be numbers")
+    steps = np.flatnonzero(np.diff(frame_numbers) <= 0)
+    if steps.size:
+        i = int(steps[0]) + 1
+        raise InputError(f"{path}: line {int(line_numbers[i])}: Frame# {frame_numbers[i]:g} does "
+                         f"not follow {frame_numbers[i - 1]:g}")
+    grid = times[0] + np.arange(times.size) / rate
+    off = np.flatnonzero(np.abs(times - grid) > 0.25 / rate)
+    if off.size:
+        i = int(off[0])
+        raise InputError(f"{path}: line {int(line_numbers[i])}: Time {times[i]:.6g} s is off the "
+                         f"1/DataRate grid (expected {grid[i]:.6g} s at {rate:g} Hz): a frame is "
+                         "missing, repeated or out of order, or DataRate is wrong")
+
+
 def read_trc(path, units: str | None = None) -> Recording:
     """Read a TRC file (OpenSim / Motion Analysis text format); empty fields are missing.
 
     Layout: ``PathFileType`` line; the header keys line (DataRate ... OrigNumFrames) and its
     values; ``Frame#  Time  label1 _ _ label2 ...``; ``_ _ X1 Y1 Z1 ...``; optional blank
-    line; one line per frame: frame number, time, then x y z per marker. The rate is
-    DataRate; the units the header's Units (``units`` overrides).
+    line; one line per frame: frame number, time, then x y z per marker, every field present
+    (:func:`check_trc_fields`), times on the DataRate grid (:func:`check_trc_time`). The rate is
+    DataRate; the units the header's Units (``units`` only when the header has none).
     """
     p = _check_readable(path)
     try:
         with open(p, encoding="utf-8-sig") as fh:
             lines = fh.readlines()
     except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"{p}: cannot read TRC text ({e})") from None
+        raise InputError(f"{p}: cannot read TRC text ({type(e).__name__})") from None
     if not lines or not lines[0].startswith("PathFileType"):
         raise InputError(f"{p}: not a TRC file (first line does not start with PathFileType)")
     if len(lines) < 5:
         raise InputError(f"{p}: TRC header is incomplete ({len(lines)} lines)")
+    check_last_line_ended(p, lines)
     keys = [k.strip() for k in _split_line(lines[1])]
     vals = [v.strip() for v in _split_line(lines[2])]
+    if len(vals) > len(keys) and any(vals[len(keys):]):
+        raise InputError(f"{p}: TRC line 3 has {len(vals)} header values for {len(keys)} keys")
     header = dict(zip(keys, vals, strict=False))
-    for key in ("DataRate", "NumFrames", "NumMarkers", "Units"):
+    for key in ("DataRate", "NumFrames", "NumMarkers"):
         if not header.get(key):
             raise InputError(f"{p}: TRC header has no {key} value")
     try:
         rate = float(header["DataRate"])
-        n_frames = int(float(header["NumFrames"]))
-        n_markers = int(float(header["NumMarkers"]))
+        n_frames, n_markers = (float(header[k]) for k in ("NumFrames", "NumMarkers"))
+        if not (n_frames.is_integer() and n_markers.is_integer()):
+            raise ValueError
+        n_frames, n_markers = int(n_frames), int(n_markers)
     except ValueError:
         raise InputError(f"{p}: TRC header DataRate/NumFrames/NumMarkers not numeric "
-                         f"({header['DataRate']!r}, {header['NumFrames']!r}, "
-                         f"{header['NumMarkers']!r})") from None
+                         f"({token(header['DataRate'])}, {token(header['NumFrames'])}, "
+                         f"{token(header['NumMarkers'])})") from None
     if not math.isfinite(rate) or rate <= 0:
-        raise InputError(f"{p}: TRC DataRate must be positive, got {header['DataRate']!r}")
-    scale = unit_scale(units if units is not None else header["Units"],
-                       f"{p} ({'units setting' if units is not None else 'TRC Units'})")
+        raise InputError(f"{p}: TRC DataRate must be positive, got {token(header['DataRate'])}")
+    if header.get("Units"):
+        used, source = header["Units"], "file"
+    elif units is not None:
+        used, source = units, "sheet"
+    else:
+        raise InputError(f"{p}: TRC header has no Units value; give the units in the sheet")
+    scale = unit_scale(used, f"{p} ({'TRC Units' if source == 'file' else 'sheet units'})")
     names = _split_line(lines[3])
     if not names or names[0].strip() != "Frame#":
-        raise InputError(f"{p}: TRC line 4 should start with 'Frame#', got {names[0]!r}")
+        raise InputError(f"{p}: TRC line 4 should start with 'Frame#', got {token(names[0])}")
     labels = [x.strip() for x in names[2:] if x.strip()]
     if len(labels) != n_markers:
         raise InputError(f"{p}: TRC header says NumMarkers={n_markers} but line 4 names "
                          f"{len(labels)} markers")
     ncol = 2 + 3 * n_markers
-    rows = []
+    rows, numbers = [], []
     for i, line in enumerate(lines[5:], start=6):
-        if not line.strip():
+        if not line.strip(" \r\n"):  # blank; a line of tabs is a frame with empty fields
             continue
-        fields = _split_line(line)
-        if len(fields) > ncol:
-            if any(f.strip() for f in fields[ncol:]):
-                raise InputError(f"{p}: line {i} has {len(fields)} fields, expected {ncol}")
-            fields = fields[:ncol]
-        elif len(fields) < ncol:  # trailing missing markers may be cut off
-            fields = fields + [""] * (ncol - len(fields))
-        rows.append(fields)
+        rows.append(_split_line(line))
+        numbers.append(i)
     if len(rows) != n_frames:
         raise InputError(f"{p}: TRC header says NumFrames={n_frames} but there are "
                          f"{len(rows)} data lines")
     if not rows:
         raise InputError(f"{p}: TRC file has no frames")
-    arr = np.array(rows, dtype=object)
+    counts = np.array([len(r) for r in rows])
+    check_trc_fields(p, numbers, counts, ncol,
+                     [any(f.strip() for f in r[ncol:]) for r in rows])
+    arr = np.array([r[:ncol] for r in rows], dtype=object)
     arr[arr == ""] = "nan"
     try:
         values = np.char.strip(arr.astype(str)).astype(float)
     except ValueError:
-        bad = next((i + 6, j, v) for i, r in enumerate(rows) for j, v in enumerate(r)
+        bad = next((numbers[i], j, v) for i, r in enumerate(rows) for j, v in enumerate(r)
                    if v.strip() and not _is_float(v))
-        raise InputError(f"{p}: non-numeric value {bad[2]!r} in data line {bad[0]} "
+        raise InputError(f"{p}: non-numeric value {token(bad[2])} in line {bad[0]} "
                          f"field {bad[1] + 1}") from None
+    check_trc_time(p, numbers, values[:, 0], values[:, 1], rate)
     xyz = values[:, 2:].reshape(n_frames, n_markers, 3) * scale
-    return Recording(labels, xyz, rate, source=str(p))
+    return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
 
 
 def _is_float(s: str) -> bool:
@@ -271,63 +493,89 @@ def read_csv(path, units: str | None = None) -> Recording:
     """Read a wide CSV: ``time`` (s), then ``<label>_x``, ``<label>_y``, ``<label>_z`` columns.
 
     The rate is 1 / (the time step), which must be uniform (within 1 % of the mean step).
-    Units are mm unless ``units`` is given. Empty cells are missing samples.
+    Units are mm unless ``units`` (the sheet's) is given: a CSV does not state its units.
+    Empty cells are missing samples; every row must have a cell for every column, and the
+    last line must end with a line end (a CSV has no frame count, so a cut file is caught
+    only when the cut falls inside a line).
     """
-    import pandas as pd
-
     p = _check_readable(path)
     try:
-        df = pd.read_csv(p, dtype=str, keep_default_na=False)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError,
-            pd.errors.EmptyDataError) as e:
-        raise InputError(f"{p}: cannot read as CSV ({str(e).splitlines()[0]})") from None
-    cols = [str(c).strip() for c in df.columns]
-    if not cols or cols[0] != "time":
-        raise InputError(f"{p}: first column must be 'time', got {cols[0] if cols else None!r}")
+        text = p.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{p}: cannot read as CSV text ({type(e).__name__})") from None
+    lines = text.splitlines(keepends=True) if "\x00" not in text else None
+    if lines is None:
+        raise InputError(f"{p}: cannot read as CSV text (binary content)")
+    check_last_line_ended(p, lines)
+    try:
+        table = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as e:
+        raise InputError(f"{p}: cannot read as CSV ({str(e).splitlines()[0][:80]})") from None
+    # a blank line is skipped; a line of commas is a frame with empty fields
+    numbers = [i + 1 for i, r in enumerate(table) if len(r) > 1 or (r and r[0].strip())]
+    table = [r for r in table if len(r) > 1 or (r and r[0].strip())]
+    if not table:
+        raise InputError(f"{p}: CSV file is empty")
+    cols = [str(c).strip() for c in table[0]]
+    if cols[0] != "time":
+        raise InputError(f"{p}: line {numbers[0]}: first column must be 'time', got "
+                         f"{token(cols[0])}")
     labels: list[str] = []
     axes: dict[str, dict[str, int]] = {}
     for j, col in enumerate(cols[1:], start=1):
         label, sep, axis = col.rpartition("_")
         if not sep or not label or axis not in ("x", "y", "z"):
-            raise InputError(f"{p}: column {col!r} is not of the form <label>_x/_y/_z")
+            raise InputError(f"{p}: column {j + 1} {token(col)} is not of the form "
+                             "<label>_x/_y/_z")
         if label not in axes:
             labels.append(label)
             axes[label] = {}
         if axis in axes[label]:
-            raise InputError(f"{p}: column {col!r} appears twice")
+            raise InputError(f"{p}: column {j + 1} {token(col)} appears twice")
         axes[label][axis] = j
+    if not labels:
+        raise InputError(f"{p}: no marker columns after 'time'")
     for label in labels:
         lacking = [a for a in "xyz" if a not in axes[label]]
         if lacking:
-            raise InputError(f"{p}: marker {label!r} has no column(s) "
-                             + ", ".join(f"{label}_{a}" for a in lacking))
-    raw = df.to_numpy(dtype=object)
+            raise InputError(f"{p}: marker {token(label)} has no column(s) "
+                             + ", ".join(token(f"{label}_{a}") for a in lacking))
+    for r, n in zip(table[1:], numbers[1:], strict=True):
+        if len(r) != len(cols):
+            raise InputError(f"{p}: line {n} has {len(r)} fields but the header has "
+                             f"{len(cols)}; a missing sample must be an empty field")
+    if len(table) < 3:
+        raise InputError(f"{p}: need at least 2 frames to get the rate from 'time'")
+    raw = np.array(table[1:], dtype=object)
     raw = np.where(np.char.strip(raw.astype(str)) == "", "nan", raw)
     try:
         values = raw.astype(float)
     except ValueError:
-        for j, col in enumerate(cols):
-            for i, v in enumerate(raw[:, j]):
+        for i, row in enumerate(raw):
+            for j, v in enumerate(row):
                 if not _is_float(v):
-                    raise InputError(f"{p}: non-numeric value {v!r} in column {col!r} "
-                                     f"row {i + 2}") from None
+                    raise InputError(f"{p}: non-numeric value {token(v)} in line "
+                                     f"{numbers[i + 1]} column {j + 1}") from None
         raise
     t = values[:, 0]
-    if t.size < 2:
-        raise InputError(f"{p}: need at least 2 frames to get the rate from 'time'")
     if not np.isfinite(t).all():
-        raise InputError(f"{p}: column 'time' has empty or non-finite values")
+        i = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise InputError(f"{p}: line {numbers[i + 1]}: 'time' is empty or not finite")
     dt = np.diff(t)
     step = (t[-1] - t[0]) / (t.size - 1)
     if step <= 0 or np.max(np.abs(dt - step)) > 0.01 * step:
         k = int(np.argmax(np.abs(dt - step)))
         raise InputError(f"{p}: column 'time' is not uniformly sampled (step {dt[k]:.6g} s "
-                         f"at row {k + 3} vs mean step {step:.6g} s)")
+                         f"at line {numbers[k + 2]} vs mean step {step:.6g} s)")
     rate = round(1.0 / step, 3)
-    scale = unit_scale(units, f"{p} (units setting)") if units is not None else 1.0
+    if units is not None:
+        used, source = units, "sheet"
+    else:
+        used, source = "mm", "default"
+    scale = unit_scale(used, f"{p} (sheet units)")
     idx = [axes[label][a] for label in labels for a in "xyz"]
     xyz = values[:, idx].reshape(t.size, len(labels), 3) * scale
-    return Recording(labels, xyz, rate, source=str(p))
+    return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
 
 
 def write_csv(path, rec: Recording) -> None:

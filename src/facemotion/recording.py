@@ -16,6 +16,9 @@ class Recording:
     points: (frames, markers, 3) float64 in millimetres; NaN marks a missing sample.
     filled: (frames, markers) bool, True where a sample was filled (by the recording's
         producer or by our gap filling) rather than measured.
+    units: the units the file's numbers were in (converted to mm on reading) and
+    units_source: where they were declared: "file" (the file's own header), "sheet" (the
+        subject sheet, for a file that does not say) or "default" (mm, for a CSV).
     """
 
     labels: list[str]
@@ -23,6 +26,8 @@ class Recording:
     rate: float
     source: str = ""
     filled: np.ndarray | None = field(default=None)
+    units: str = "mm"
+    units_source: str = "default"
 
     def __post_init__(self) -> None:
         self.labels = [str(label) for label in self.labels]
@@ -68,4 +73,4 @@ class Recording:
         """A new recording with only these markers, in this order."""
         idx = [self.index(label) for label in labels]
         return Recording(list(labels), self.points[:, idx, :].copy(), self.rate, self.source,
-                         self.filled[:, idx].copy())
+                         self.filled[:, idx].copy(), self.units, self.units_source)
