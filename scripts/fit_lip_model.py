@@ -4,7 +4,7 @@ import numpy as np
 
 from facemotion.errors import InputError
 from facemotion.lips.plots import plot_mesh, plot_modes
-from facemotion.lips.study import grid_lip_study, run_lip_model
+from facemotion.lips.study import grid_lip_study, run_virtual
 from facemotion.lips.virtual import make_virtual_talker
 from facemotion.provenance import save_figure, write_table
 from facemotion.readers import read_trc
@@ -15,6 +15,7 @@ from facemotion.subjects import parse_sentences
 def main(sm, log, prov):
     p = sm.params.lip
     spec = p["subject"]
+    subject = sm.wildcards.lip_subject
     recordings = [read_trc(f) for f in sm.input.tracks]
     n = sum(r.n_frames for r in recordings)
     train = np.array(parse_sentences(p["train_frames"], n, "lips.train_frames"))
@@ -22,12 +23,16 @@ def main(sm, log, prov):
     noise_var = "ppca" if p["noise_var"] == "auto" else p["noise_var"]
     if isinstance(noise_var, str) and noise_var != "ppca":
         raise InputError(f"setting lips.noise_var: {noise_var!r} is neither a number nor 'auto'")
+    extent = p["model_extent"]
     common = {"train_frames": train, "test_frames": test, "n_modes": p["n_modes"],
               "noise_var": noise_var, "E": p["E"], "nu": p["nu"],
+              "model_extent": None if extent is None else tuple(extent),
               "noise_grid": tuple(p["noise_var_sweep"])}
     if spec["source"] == "grid":
-        result = grid_lip_study(recordings, sm.input.mesh, **common)
+        result = grid_lip_study(recordings, sm.input.mesh, normalisation=p["normalisation"],
+                                **common)
         points = result.heldout_landmarks
+        name = "GRID talker"
     else:
         talker = make_virtual_talker(n_frames=spec.get("frames", 150), seed=spec.get("seed", 0))
         rec = recordings[0]
@@ -35,22 +40,30 @@ def main(sm, log, prov):
             raise InputError(f"{rec.source}: labels differ from the virtual talker's")
         err = float(np.max(np.abs(rec.points - talker.recording.points)))
         log.info("TRC round trip of the virtual talker: max difference %.2e mm", err)
-        result = run_lip_model(talker.mesh, rec, talker.tracked_labels,
-                               normalisation=p["normalisation"], nose_label=talker.nose_label,
-                               reference_labels=talker.head_labels,
-                               view_points=talker.view_labels, truth=talker.truth, **common)
+        result = run_virtual(talker, rec, p["normalisation"], **common)
         points = result.truth_recovery
-    log.info("noise variance %.4g mm^2 (%s)", result.noise_var, result.noise_var_choice)
-    fixed = result.mesh.fixed
-    save_figure(plot_mesh(result.mesh, result.tracked, fixed),
+        name = "Virtual lip talker"
+    log.info("model placement on the first frame: %s", {k: round(float(v), 4) for k, v in
+                                                          result.placement.items()})
+    log.info("model units per mm (x, y, z): %s", np.round(result.unit_scale, 5).tolist())
+    log.info("noise variance of the regularised estimators %.4g model units^2 (%s)",
+             result.noise_var, result.noise_var_choice)
+    save_figure(plot_mesh(result.mesh, result.tracked, result.mesh.fixed),
                 [sm.output.mesh_png, sm.output.mesh_pdf], "lip_mesh", prov)
     write_table(result.modes, sm.output.modes, "lip_modes", prov)
+    title = (f"{name} ({subject}): mean displacement and characteristic modes "
+             f"(Basu & Pentland 1997, Fig. 9)")
     save_figure(plot_modes(result.mean_displacement, result.mode_shapes, result.mesh,
-                           result.mode_sd),
+                           result.mode_sd, result.mode_variance_fraction, result.unit_scale,
+                           title=title),
                 [sm.output.modes_png, sm.output.modes_pdf], "lip_modes", prov)
     write_table(result.fit_residuals, sm.output.residuals, "lip_fit_residuals", prov)
-    write_table(result.reconstruction.reset_index(), sm.output.reconstruction,
-                "lip_reconstruction", prov)
+    recon = result.reconstruction
+    recon.insert(0, "lip_subject", subject)
+    write_table(recon, sm.output.reconstruction, "lip_reconstruction", prov)
+    counts = result.counts
+    counts.insert(0, "lip_subject", subject)
+    write_table(counts, sm.output.counts, "lip_model_counts", prov)
     write_table(result.noise_sensitivity, sm.output.sensitivity, "summary", prov)
     write_table(points, sm.output.heldout, "summary", prov)
 

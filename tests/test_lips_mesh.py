@@ -10,12 +10,15 @@ from facemotion.errors import InputError
 from facemotion.lips.mesh import (
     INNER_RING,
     OUTER_RING,
+    PAPER_MODEL_EXTENT,
     LipMesh,
     canonical_lip_mesh,
+    extents,
     lip_band,
     parametric_lip_mesh,
     read_obj,
     triangle_areas,
+    unit_scale,
 )
 
 DATA = Path(os.environ.get("FACEMOTION_SHARED_DATA",
@@ -25,13 +28,22 @@ OBJ = DATA / "mesh" / "canonical_face_model.obj"
 
 def test_parametric_mesh_size_roles_and_geometry():
     m = parametric_lip_mesh()
-    assert (m.n_nodes, m.n_triangles) == (192, 336)   # paper: 204 nodes, 336 triangles
-    assert len(m.fixed) == 24 and set(m.role[m.fixed]) == {"fixed"}
-    assert len(m.band_nodes) == 5 * 24
+    # the paper's counts (Sec. 2.1): 336 faces, 204 nodes, 612 DOF
+    assert (m.n_nodes, m.n_triangles, 3 * m.n_nodes) == (204, 336, 612)
+    assert len(m.fixed) == 11 and set(m.role[m.fixed]) == {"fixed"}
+    assert len(m.band_nodes) == 5 * 32
+    # the strip hangs from the top of the upper lip and runs back into the mouth (Sec. 2.4)
+    strip = np.isin(m.role, ("strip", "fixed"))
+    assert m.nodes[strip, 2].max() < m.nodes[m.role == "inner", 2].max()
+    assert m.nodes[m.fixed, 1].min() > 0 and m.nodes[m.fixed, 2].max() < -10
+    # mirror symmetric about x = 0 (the paper made its mesh symmetric, Sec. 2.1)
+    mirrored = m.nodes * [-1, 1, 1]
+    d = np.linalg.norm(mirrored[:, None] - m.nodes[None], axis=2)
+    assert np.all(d.min(axis=1) < 1e-9)
     width = np.ptp(m.nodes[m.role == "outer", 0])
     assert 45 < width < 55                               # about 50 mm wide
     assert np.ptp(m.nodes[m.band_nodes, 2]) > 5         # curved in z
-    assert (m.element_kind == "ridge").sum() == 48
+    assert (m.element_kind == "ridge").sum() == 64
     assert m.labels[17] == "n017" and m.index("n017") == 17
 
 
@@ -108,3 +120,16 @@ def test_obj_reader_bad_line(tmp_path):
     p.write_text("v 0 0 0\nv 1 x 0\n")
     with pytest.raises(InputError, match="line 2"):
         read_obj(p)
+
+
+def test_unit_scale_gives_the_papers_extents():
+    m = parametric_lip_mesh()
+    k = unit_scale(m, PAPER_MODEL_EXTENT)
+    scaled = m.nodes * k
+    # independent reference: the bounding box by sorting each axis
+    size = np.array([np.sort(scaled[:, a])[-1] - np.sort(scaled[:, a])[0] for a in range(3)])
+    np.testing.assert_allclose(size, [2.35, 2.83, 5.05], rtol=1e-12)
+    np.testing.assert_allclose(extents(m.nodes), [50.0, size[1] / k[1], size[2] / k[2]])
+    assert np.all(unit_scale(m, None) == 1)
+    with pytest.raises(InputError, match="model_extent"):
+        unit_scale(m, (2.35, -1.0, 5.05))

@@ -73,3 +73,26 @@ def test_ppca_noise_var_is_mean_discarded_variance():
     assert s2 == pytest.approx(full.variances[4:].sum() / (45 - 4), rel=1e-10)
     with pytest.raises(InputError, match="noise_var"):
         LLSE.from_modes(full, 4).estimate(DATA[:1, :3], np.arange(3), -1.0)
+
+
+def test_noise_free_full_covariance_is_the_conditional_mean_and_minimum_norm():
+    # 12 training frames span an 11-dimensional covariance; observe 8 DOF (fewer than its rank):
+    # H Lambda H^T is invertible, so sigma^2 = 0 is the literal LLSE formula; and the estimate
+    # is the minimum-norm combination of the training deviations that meets the observations
+    train = DATA[:12]
+    est = LLSE.from_data(train)
+    obs = np.array([0, 5, 9, 14, 20, 27, 33, 40])
+    H = np.eye(45)[obs]
+    y = DATA[50:53, obs]
+    u = est.estimate(y, obs, 0.0)
+    np.testing.assert_allclose(u, llse_dense(y, H, train.mean(0), np.cov(train.T), 0.0),
+                               atol=1e-8)
+    np.testing.assert_allclose(u[:, obs], y, atol=1e-9)       # observations met exactly
+    X = (train - train.mean(0)).T                               # deviations, (45, 12)
+    for f in range(3):
+        # independent reference: minimise |c|^2 subject to H X c = r by the KKT system
+        A = X[obs]
+        r = y[f] - train.mean(0)[obs]
+        kkt = np.block([[np.eye(12), A.T], [A, np.zeros((8, 8))]])
+        c = np.linalg.solve(kkt, np.concatenate([np.zeros(12), r]))[:12]
+        np.testing.assert_allclose(u[f], train.mean(0) + X @ c, atol=1e-8)

@@ -10,10 +10,19 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
-from facemotion.lips.normalise import align_rigid, normalise_paper
+from facemotion.lips.normalise import align_rigid
 from facemotion.lips.plots import plot_mesh, plot_modes
-from facemotion.lips.study import VIEWS, grid_lip_study, run_lip_model, virtual_lip_study
-from facemotion.lips.virtual import make_virtual_talker
+from facemotion.lips.study import (
+    PAPER_TABLE1,
+    POINT_SETS,
+    VIEWS,
+    grid_lip_study,
+    run_lip_model,
+    state_positions,
+    view_nodes,
+    virtual_lip_study,
+)
+from facemotion.lips.virtual import DEPTH_SHARE_TARGET, depth_share, make_virtual_talker
 from facemotion.recording import Recording
 
 DATA = Path(os.environ.get("FACEMOTION_SHARED_DATA",
@@ -43,20 +52,6 @@ def test_align_rigid_undoes_a_planted_head_motion():
     assert rms.max() < 1e-10
 
 
-def test_paper_normalisation_is_invariant_to_head_motion():
-    talker = make_virtual_talker(n_frames=2, noise_mm=0.0, head_rotation_deg=0,
-                                 head_translation_mm=0)
-    rest = talker.recording.points[0]
-    R = Rotation.from_rotvec([[0, 0, 0], [0.2, -0.3, 0.1]]).as_matrix()
-    pts = np.einsum("fij,mj->fmi", R, rest) + np.array([[[0, 0, 0]], [[5.0, -3.0, 40.0]]])
-    m = talker.mesh
-    part = m.part[m.indices(talker.tracked_labels)]
-    out = normalise_paper(pts, 16, np.where(part == "upper")[0], np.where(part == "lower")[0],
-                          (12, 0))
-    np.testing.assert_allclose(out[1], out[0], atol=1e-10)
-    np.testing.assert_allclose(out[0, 16], 0, atol=1e-12)   # nose at the origin
-
-
 @pytest.fixture(scope="module")
 def virtual_rigid():
     return virtual_lip_study(seed=0, normalisation="rigid")
@@ -72,9 +67,9 @@ def test_virtual_talker_recording_and_truth():
 
 def test_virtual_truth_recovered_from_16_points(virtual_rigid):
     # Stated bound: with 0.3 mm tracking noise and head motion removed by the rigid head
-    # fit, the minimal-force fit of 16 points recovers the 120 lip-band nodes' true
+    # fit, the minimal-force fit of 16 points recovers the 193 free nodes' true
     # displacement with a mean (over frames) RMS error below 1.5 mm and below 40 % of the
-    # RMS true displacement (about 3.7 mm). Noise-free, without head motion: below 0.8 mm.
+    # RMS true displacement (about 3.5 mm). Noise-free, without head motion: below 0.8 mm.
     _, res = virtual_rigid
     rec = res.truth_recovery
     assert rec["rms_error_mm"].mean() < 1.5
@@ -94,23 +89,84 @@ def test_virtual_tables(virtual_rigid):
     assert list(res.modes.columns) == ["mode", "variance", "cumulative_fraction"]
     assert res.modes["cumulative_fraction"].iloc[9] > 0.95
     rec = res.reconstruction
-    assert list(rec.index) == list(VIEWS)
-    assert {"error_10_modes", "error_full_covariance", "noise_var_mm2"} <= set(rec.columns)
-    # every view beats guessing the mean shape
-    assert np.all(rec["error_10_modes"] < 0.2 * rec["error_mean_shape"])
+    # one row per view x point set x covariance x noise
+    assert len(rec) == 3 * 2 * 2 * 2
+    assert set(map(tuple, rec[["view", "point_set", "covariance", "noise"]].to_numpy())) == {
+        (v, p, c, n) for v in VIEWS for p in POINT_SETS for c in ("10_modes", "full_covariance")
+        for n in ("noise_free", "regularised")}
+    # the paper's values sit on the paper's definition (tracked points, sigma^2 = 0) only
+    paper = rec[rec.paper_definition]
+    assert len(paper) == 6 and paper["noise_var_model_units2"].eq(0).all()
+    for _, r in paper.iterrows():
+        assert r.paper_mse_per_dof_model_units2 == PAPER_TABLE1[r.view][
+            r.covariance == "full_covariance"]
+    assert rec.loc[~rec.paper_definition, "paper_mse_per_dof_model_units2"].isna().all()
+    # observed DOF: 24 for 8 points, 32 for two axes of 16 tracked points, 320 of 160 nodes
+    n_obs = rec.groupby(["view", "point_set"])["n_observed_dof"].first()
+    assert n_obs["xyz_8_points", "tracked_points"] == 24
+    assert n_obs["yz_all_points", "tracked_points"] == 32
+    assert n_obs["xy_all_points", "mesh_nodes"] == 320
+    assert rec["n_evaluated_dof"].eq(3 * (204 - 11)).all()
+    # every estimate beats guessing the mean shape
+    assert np.all(rec["mse_per_dof_model_units2"] < rec["mse_mean_shape_model_units2"])
     assert len(res.test_frames) == 10 and res.test_frames[0] == 140
+    # mm^2 and model units^2 agree through the per-axis unit scale: the ratio lies between
+    # the smallest and the largest squared factor
+    ratio = rec["mse_per_dof_model_units2"] / rec["mse_per_dof_mm2"]
+    k2 = res.unit_scale ** 2
+    assert np.all((ratio >= k2.min() * (1 - 1e-9)) & (ratio <= k2.max() * (1 + 1e-9)))
     s = res.noise_sensitivity
-    exact = s[(s.noise_var_mm2 == 0) & (s.view != "xyz_8_points")]
-    # the fitted displacements have rank <= 48 < 240 observed DOF: full covariance is exact
-    assert exact["error_full_covariance"].max() < 1e-12
+    exact = s[(s.noise_var_model_units2 == 0) & (s.point_set == "mesh_nodes")
+              & (s.view != "xyz_8_points") & (s.covariance == "full_covariance")]
+    # the fitted displacements have rank <= 48 < 320 observed DOF: full covariance is exact
+    assert exact["mse_per_dof_model_units2"].max() < 1e-12
     assert res.mode_shapes.shape == (10, res.mesh.n_nodes, 3)
 
 
-def test_paper_normalisation_runs_on_virtual_talker():
+def test_views_select_the_right_dof():
+    talker = make_virtual_talker(n_frames=2)
+    mesh, tracked = talker.mesh, talker.tracked_labels
+    state = np.setdiff1d(np.arange(3 * mesh.n_nodes),
+                         (3 * mesh.fixed[:, None] + np.arange(3)).ravel())
+    code = [(d // 3, d % 3) for d in state]          # (node, axis) of every state entry
+    tr = {mesh.labels.index(t) for t in tracked}
+    band = {i for i in range(mesh.n_nodes) if mesh.role[i] in ("outer", "lip", "inner")}
+    first8 = [mesh.labels.index(t) for t in tracked[:8]]
+    expect = {("xyz_8_points", "tracked_points"): {(n, a) for n in first8 for a in (0, 1, 2)},
+              ("xyz_8_points", "mesh_nodes"): {(n, a) for n in first8 for a in (0, 1, 2)},
+              ("yz_all_points", "tracked_points"): {(n, a) for n in tr for a in (1, 2)},
+              ("xy_all_points", "tracked_points"): {(n, a) for n in tr for a in (0, 1)},
+              ("yz_all_points", "mesh_nodes"): {(n, a) for n in band for a in (1, 2)},
+              ("xy_all_points", "mesh_nodes"): {(n, a) for n in band for a in (0, 1)}}
+    for (v, ps), want in expect.items():
+        nodes, axes = view_nodes(mesh, v, ps, tracked, tracked[:8])
+        got = {code[i] for i in state_positions(mesh, state, nodes, axes)}
+        assert got == want, (v, ps)
+
+
+def test_default_virtual_talker_meets_its_depth_calibration_target():
+    t = make_virtual_talker()
+    d = t.truth[:, t.mesh.indices(t.tracked_labels)]
+    test = np.arange(140, 150)
+    x = d[test] - d[test].mean(axis=0)
+    by_hand = np.sum(x[..., 2] ** 2) / np.sum(x ** 2)
+    assert depth_share(d, test) == pytest.approx(by_hand, rel=1e-12)
+    assert depth_share(d, test) >= DEPTH_SHARE_TARGET
+
+
+def test_paper_pipeline_on_the_virtual_talker():
     _, res = virtual_lip_study(seed=1)
     assert res.fit_residuals["max_residual_mm"].max() < 1e-10
-    cols = ["error_10_modes", "error_full_covariance", "truth_error_10_modes"]
-    assert np.isfinite(res.reconstruction[cols].to_numpy()).all()
+    # the model placed on the first frame: near-identity scales and rotation (the virtual
+    # talker's neutral lip is the mesh), and the rest state absorbs the first frame's noise
+    assert all(0.95 < res.placement[k] < 1.05 for k in ("scale_x", "scale_y", "scale_z"))
+    assert res.placement["rotation_deg"] < 5
+    assert np.allclose(res.displacements[0], 0, atol=1e-9)
+    assert np.isfinite(res.reconstruction["mse_vs_truth_model_units2"]).all()
+    c = res.counts.set_index("quantity")["our_value"]
+    assert (c["nodes"], c["triangles"], c["dof"], c["constrained_dof"]) == (204, 336, 612, 48)
+    np.testing.assert_allclose([c["model_extent_x"], c["model_extent_y"], c["model_extent_z"]],
+                               [2.35, 2.83, 5.05])
 
 
 def test_bad_settings_named():
@@ -126,6 +182,9 @@ def test_bad_settings_named():
                       test_frames=[25])
     with pytest.raises(InputError, match="nose_label"):
         run_lip_model(t.mesh, t.recording, t.tracked_labels, normalisation="paper")
+    with pytest.raises(InputError, match="model_extent"):
+        run_lip_model(t.mesh, t.recording, t.tracked_labels, normalisation="none",
+                      model_extent=(1.0, 0.0, 1.0))
 
 
 @pytest.fixture(scope="module")
@@ -138,10 +197,11 @@ def test_grid_lip_model_end_to_end(grid_result):
     res = grid_result
     assert len(res.mesh.band_nodes) == 80 and len(res.tracked) == 16
     assert res.fit_residuals["max_residual_mm"].max() < 1e-10
-    assert res.placement_rms_mm < 1e-6        # mesh built from the talker's own frame 0
+    # mesh built from the talker's own normalised first frame: placement is the identity
+    assert res.placement["rest_rms_mm"] < 1e-6 and res.placement["rotation_deg"] < 1e-6
     assert res.modes["cumulative_fraction"].iloc[9] > 0.9
     rec = res.reconstruction
-    assert np.all(rec["error_10_modes"] < rec["error_mean_shape"])
+    assert np.all(rec["mse_per_dof_model_units2"] < rec["mse_mean_shape_model_units2"])
     h = res.heldout_landmarks
     assert set(h["view"]) == {"minimal_force_fit", *VIEWS}
     assert h["landmark"].nunique() == 64
@@ -153,9 +213,10 @@ def test_grid_lip_model_end_to_end(grid_result):
 def test_figures_are_deterministic(virtual_rigid, grid_result):
     talker, res = virtual_rigid
     figs = [plot_mesh(res.mesh, res.tracked),
-            plot_modes(res.mean_displacement, res.mode_shapes, res.mesh, res.mode_sd),
+            plot_modes(res.mean_displacement, res.mode_shapes, res.mesh, res.mode_sd,
+                       res.mode_variance_fraction, res.unit_scale),
             plot_mesh(grid_result.mesh, grid_result.tracked)]
-    assert len(figs[0].axes) == 2 and len(figs[1].axes) == 7
+    assert len(figs[0].axes) == 2 and len(figs[1].axes) == 8
     out = []
     for _ in range(2):
         buf = io.BytesIO()

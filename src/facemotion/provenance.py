@@ -54,7 +54,12 @@ TABLE_SCHEMAS: dict[str, tuple[str, tuple[str, ...]]] = {
     "selected_markers": ("1", ("order",)),
     "lip_modes": ("1", ("mode", "variance", "cumulative_fraction")),
     "lip_fit_residuals": ("1", ("frame",)),
-    "lip_reconstruction": ("1", ("view", "error_10_modes", "error_full_covariance")),
+    "lip_reconstruction": ("2", ("lip_subject", "view", "point_set", "covariance", "noise",
+                                 "noise_var_model_units2", "n_observed_dof", "n_evaluated_dof",
+                                 "mse_per_dof_model_units2", "mse_per_dof_mm2",
+                                 "paper_definition", "paper_mse_per_dof_model_units2")),
+    "lip_model_counts": ("1", ("lip_subject", "quantity", "paper_value", "our_value", "unit",
+                               "paper_place")),
     "summary": ("1", ()),
     "manifest": ("1", ("path", "sha256", "schema_id", "schema_version", "sidecar")),
 }

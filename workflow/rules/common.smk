@@ -155,6 +155,7 @@ def lip_params(wildcards):
         "test_frames": lips["test_frames"],
         "noise_var": lips["noise_var"],
         "noise_var_sweep": lips["noise_var_sweep"],
+        "model_extent": lips["model_extent"],
         "E": lips["E"],
         "nu": lips["nu"],
     }

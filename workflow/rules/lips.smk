@@ -52,6 +52,13 @@ rule fit_lip_model:
             subcategory="{lip_subject}",
         ),
         reconstruction_meta="results/lips/{lip_subject}/reconstruction.meta.json",
+        counts=report(
+            "results/lips/{lip_subject}/model_counts.tsv",
+            caption="../report/lip_model_counts.rst",
+            category="6. Lip model",
+            subcategory="{lip_subject}",
+        ),
+        counts_meta="results/lips/{lip_subject}/model_counts.meta.json",
         sensitivity="results/lips/{lip_subject}/noise_sensitivity.tsv",
         sensitivity_meta="results/lips/{lip_subject}/noise_sensitivity.meta.json",
         heldout="results/lips/{lip_subject}/heldout_points.tsv",

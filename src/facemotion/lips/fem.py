@@ -1,10 +1,10 @@
-"""Thin-shell finite elements of the lip mesh (Basu & Pentland 1997, section 3).
+"""Thin-shell finite elements of the lip mesh (Basu & Pentland 1997, Sec. 2.3).
 
 Each triangle is a flat shell element with 3 DOF per node: in its own 2-D frame a constant-strain
 triangle (CST) for the in-plane displacements (u, v) and a separate 3x3 term for the normal
-displacement w, decoupled from the in-plane part (paper eqs. 2 and 6). The 9x9 local matrix is
-rotated into global coordinates and assembled into a sparse K; global DOF of node i are
-3 i + (0, 1, 2) = (x, y, z).
+displacement w, decoupled from the in-plane part (paper eqs. 2 and 6; K U = F is eq. 1). The
+9x9 local matrix is rotated into global coordinates and assembled into a sparse K; global DOF of
+node i are 3 i + (0, 1, 2) = (x, y, z).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from facemotion.lips.mesh import LipMesh
 
 
 def material_matrix(E: float = 1.0, nu: float = 0.01) -> np.ndarray:
-    """The paper's material matrix C (eq. 2), as printed.
+    """The paper's material matrix C (eq. 5), as printed.
 
     C = E (1 - v) / ((1 + v)(1 - 2 v)) [[1, v/(1-v), 0], [v/(1-v), 1, 0],
                                         [0, 0, (1 - 2v)/(2(1 - v))]].
@@ -60,9 +60,10 @@ def cst_b_matrix(xy: np.ndarray) -> tuple[np.ndarray, float]:
 
 def cst_stiffness(xy: np.ndarray, E: float = 1.0, nu: float = 0.01,
                   thickness: float = 1.0) -> np.ndarray:
-    """In-plane 6x6 CST stiffness k_xy = t A B^T C B (paper eq. 2), DOF (u1, v1, ..., v3)."""
+    """In-plane 6x6 CST stiffness k_xy = t A B^T C B (the k_xy block of eq. 2; strains eq. 3,
+    element DOF eq. 4, C eq. 5), DOF (u1, v1, ..., v3)."""
     B, area = cst_b_matrix(np.asarray(xy, dtype=float))
-    return thickness * area * B.T @ material_matrix(E, nu) @ B  # eq. 2
+    return thickness * area * B.T @ material_matrix(E, nu) @ B  # k_xy of eq. 2
 
 
 def normal_stiffness(E: float = 1.0, nu: float = 0.01) -> np.ndarray:

@@ -1,8 +1,9 @@
 """Minimal-force fitting of the lip mesh to tracked points (Basu & Pentland 1997, eqs. 8-10).
 
-With K_s U = F on the free DOF and goals U_g for the constrained (tracked) DOF, the force of
-least norm that meets the goals is F = P^T (P P^T)^-1 U_g, P = the rows of K_s^-1 for the
-constrained DOF (eq. 9), and the whole mesh moves by U = K_s^-1 F (eq. 10).
+With U_s = K_s^-1 F_s on the free DOF (eq. 7) and goals U_g for the constrained (tracked) DOF,
+P = the rows of K_s^-1 for the constrained DOF (Sec. 4.1): minimising F^T F (eq. 8) subject to
+P F = U_g (eq. 9) gives the force of least norm F = P^T (P P^T)^-1 U_g (eq. 10), and the whole
+mesh moves by U = K_s^-1 F (eq. 7).
 
 K_s is symmetric, so P^T = K_s^-1 E = G, E selecting the constrained DOF. We factor K_s once
 (sparse LU), solve only for the m constrained columns, and never form K_s^-1. With G = Q R
@@ -72,9 +73,9 @@ class MinimalForceFitter:
         if np.min(np.abs(np.diag(R))) <= 1e-12 * np.max(np.abs(np.diag(R))):
             raise InputError(f"{mesh.name}: the tracked DOF are not independent (P P^T is "
                              f"singular); is the mesh attached to its fixed nodes?")
-        self._force_map = Q                        # F = Q R^-T U_g  (eq. 9)
+        self._force_map = Q                        # F = Q R^-T U_g  (eq. 10)
         self._R = R
-        self._disp_map = lu.solve(Q)               # U = K_s^-1 F    (eq. 10)
+        self._disp_map = lu.solve(Q)               # U = K_s^-1 F    (eq. 7)
 
     def forces(self, goals: np.ndarray) -> np.ndarray:
         """Minimal nodal forces on the free DOF, (frames, n_free_dof)."""
@@ -113,9 +114,9 @@ def fit_dense_reference(K_s: np.ndarray, constrained: np.ndarray,
     Returns displacements of the free DOF (frames, n).
     """
     K_inv = np.linalg.inv(K_s)
-    P = K_inv[constrained, :]                                   # eq. 8
-    F = P.T @ np.linalg.inv(P @ P.T) @ np.asarray(goals).T     # eq. 9
-    return (K_inv @ F).T                                        # eq. 10
+    P = K_inv[constrained, :]                                   # P, Sec. 4.1
+    F = P.T @ np.linalg.inv(P @ P.T) @ np.asarray(goals).T     # eq. 10
+    return (K_inv @ F).T                                        # eq. 7
 
 
 def fit_residuals(U: np.ndarray, goals: np.ndarray, tracked: np.ndarray) -> pd.DataFrame:

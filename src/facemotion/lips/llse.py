@@ -1,7 +1,8 @@
 """Linear least-squares estimation (LLSE) of the whole lip shape from partial observations.
 
-Basu & Pentland (1997), section 5: with observations y = H u + noise (noise variance sigma^2
-per observed DOF) and a Gaussian prior on the displacements u (mean m, covariance Lambda),
+Basu & Pentland (1997), Secs. 4.1, 4.2 and 5 (the estimator itself is not numbered): with
+observations y = H u + noise (noise variance sigma^2 per observed DOF) and a Gaussian prior on
+the displacements u (mean m, covariance Lambda),
 
     u_hat = m + Lambda H^T (H Lambda H^T + sigma^2 I)^-1 (y - H m).
 
@@ -12,7 +13,8 @@ push-through identity gives the same estimate through a k x k system,
     u_hat = m + L (B^T B + sigma^2 I)^-1 B^T (y - H m),   B = H L,
 
 and at sigma^2 = 0 its limit, the minimum-norm least-squares fit u_hat = m + L pinv(B) (y - H m)
-(for the k-mode model: least squares on the modes).
+(for the k-mode model: least squares on the modes). The paper writes no noise term, so
+sigma^2 = 0 is its estimator; the study reports it beside a regularised one.
 
 The noise variance is a setting. The principled default for the k-mode model is probabilistic
 PCA (Tipping & Bishop 1999): the variance the k modes leave out, spread evenly over the
@@ -45,7 +47,7 @@ class LLSE:
 
     @classmethod
     def from_data(cls, data: np.ndarray) -> LLSE:
-        """The full sample covariance of training data (frames, D), exactly (eq. 11)."""
+        """The full sample covariance of training data (frames, D), exactly (eq. 13)."""
         data = np.asarray(data, dtype=float)
         if len(data) < 2:
             raise InputError(f"LLSE: the full covariance needs at least 2 training frames, "

@@ -3,10 +3,10 @@
 Two meshes are built here:
 
 * `parametric_lip_mesh`: a synthetic lip of realistic size (about 50 mm wide, curved round the
-  teeth in z), made of closed rings from the outer lip contour to the inner one, plus a strip of
-  rings running back into the mouth whose far ring is fixed. The default (24 nodes round, 5 lip
-  rings, 3 strip rings) has 192 nodes and 336 triangles (the paper's mesh: 204 nodes, 336
-  triangles).
+  teeth in z), made of closed rings from the outer lip contour to the inner one, plus a thin
+  strip from the top of the lips back into the mouth whose far row is fixed (paper Sec. 2.4).
+  The default (32 nodes round, 5 rings, an 11 x 4 strip) has the paper's counts (Sec. 2.1):
+  204 nodes, 612 DOF, 336 triangles.
 * `canonical_lip_mesh`: the lip band of the MediaPipe canonical face mesh (80 vertices, 120
   triangles between the inner and outer lip contours; the 18 triangles that close the mouth are
   dropped), plus an extruded mouth strip.
@@ -198,25 +198,44 @@ def _ring_quads(ring_a: np.ndarray, ring_b: np.ndarray, theta: np.ndarray) -> li
     return tris
 
 
-def parametric_lip_mesh(n_around: int = 24, n_rings: int = 5, strip_rings: int = 3,
-                        width: float = 50.0, upper_height: float = 11.0,
+def _strip_quads(row_a: np.ndarray, row_b: np.ndarray, x: np.ndarray) -> list[list[int]]:
+    """Two triangles per quad between two open rows; diagonals mirror-symmetric about x = 0."""
+    tris = []
+    for c in range(len(row_a) - 1):
+        a, b, p, q = row_a[c], row_a[c + 1], row_b[c], row_b[c + 1]
+        if x[c] + x[c + 1] < 0:
+            tris += [[a, b, q], [a, q, p]]
+        else:
+            tris += [[a, b, p], [b, q, p]]
+    return tris
+
+
+def parametric_lip_mesh(n_around: int = 32, n_rings: int = 5, strip_width: int = 11,
+                        strip_rows: int = 4, width: float = 50.0, upper_height: float = 11.0,
                         lower_height: float = 12.0, inner_width: float = 42.0,
                         opening: float = 3.0, jaw_radius: float = 45.0,
-                        bulge: float = 4.0, strip_depth: float = 4.0) -> LipMesh:
+                        bulge: float = 4.0, strip_depth: float = 4.0,
+                        strip_rise: float = 1.0) -> LipMesh:
     """A synthetic lip mesh (mm): x to the talker's left (image right), y up, z forward.
 
-    Rings run from the outer lip contour (ring 0) to the inner contour (ring n_rings - 1), then
-    `strip_rings` rings step `strip_depth` mm back into the mouth; the last one is fixed. Node k
+    Rings run from the outer lip contour (ring 0) to the inner contour (ring n_rings - 1). Node k
     of every ring sits at angle 2 pi k / n_around from the corner at +x (k = 0), so tracked
-    points can be chosen at the same angle on the outer and inner contours.
+    points can be chosen at the same angle on the outer and inner contours. As in the paper
+    (Sec. 2.4), a thin strip of `strip_width` x `strip_rows` nodes runs from the middle of the
+    upper lip's inner contour back into the mouth (`strip_depth` mm back and `strip_rise` mm up
+    per row); its far row is fixed. The defaults give the paper's counts (Sec. 2.1): 32 x 5 +
+    11 x 4 = 204 nodes (612 DOF) and 2 x 32 x 4 + 2 x 10 x 4 = 336 triangles.
     """
     if n_around < 8 or n_around % 4:
         raise InputError(f"parametric_lip_mesh: n_around must be a multiple of 4 and >= 8, "
                          f"got {n_around}")
     if n_rings < 2:
         raise InputError(f"parametric_lip_mesh: n_rings must be >= 2, got {n_rings}")
-    if strip_rings < 1:
-        raise InputError(f"parametric_lip_mesh: strip_rings must be >= 1, got {strip_rings}")
+    if strip_rows < 1:
+        raise InputError(f"parametric_lip_mesh: strip_rows must be >= 1, got {strip_rows}")
+    if strip_width < 3 or strip_width % 2 == 0 or strip_width > n_around // 2 + 1:
+        raise InputError(f"parametric_lip_mesh: strip_width must be odd, >= 3 and at most "
+                         f"{n_around // 2 + 1} (the upper lip), got {strip_width}")
     theta = 2 * np.pi * np.arange(n_around) / n_around
     c, s = np.cos(theta), np.sin(theta)
     outer = np.column_stack([width / 2 * c, np.where(s >= 0, upper_height, lower_height) * s])
@@ -230,28 +249,66 @@ def parametric_lip_mesh(n_around: int = 24, n_rings: int = 5, strip_rings: int =
             1 - 0.6 * c ** 2)
         nodes.append(np.column_stack([xy, z]))
         role += ["outer" if r == 0 else "inner" if r == n_rings - 1 else "lip"] * n_around
-    inner3 = nodes[-1]
-    for j in range(1, strip_rings + 1):
-        p = inner3 * np.array([1 - 0.05 * j, 1 - 0.15 * j, 1.0])
-        p[:, 2] = inner3[:, 2] - strip_depth * j
-        nodes.append(p)
-        role += ["fixed" if j == strip_rings else "strip"] * n_around
-    nodes = np.vstack(nodes)
-    rings = np.arange(n_rings + strip_rings)[:, None] * n_around + np.arange(n_around)
+    rings = np.arange(n_rings)[:, None] * n_around + np.arange(n_around)
     tris, kinds = [], []
-    for r in range(n_rings + strip_rings - 1):
+    for r in range(n_rings - 1):
         q = _ring_quads(rings[r], rings[r + 1], theta)
         tris += q
-        kind = "lip" if r < n_rings - 2 else "ridge" if r == n_rings - 2 else "strip"
-        kinds += [kind] * len(q)
+        kinds += ["lip" if r < n_rings - 2 else "ridge"] * len(q)
+    # the strip: columns at the inner-contour nodes centred on the top of the upper lip
+    top = n_around // 4
+    cols = rings[-1][top + (strip_width // 2) - np.arange(strip_width)]   # from -x... to +x
+    cols = cols[np.argsort(nodes[-1][cols - rings[-1][0], 0])]
+    base = np.vstack(nodes)[cols]
+    n = n_rings * n_around
+    prev = cols
+    for j in range(1, strip_rows + 1):
+        p = base.copy()
+        p[:, 0] *= 1 - 0.05 * j
+        p[:, 1] += strip_rise * j
+        p[:, 2] -= strip_depth * j
+        nodes.append(p)
+        cur = n + np.arange(strip_width)
+        n += strip_width
+        q = _strip_quads(prev, cur, base[:, 0])
+        tris += q
+        kinds += ["strip"] * len(q)
+        role += ["fixed" if j == strip_rows else "strip"] * strip_width
+        prev = cur
+    nodes = np.vstack(nodes)
     part_ring = np.where(np.abs(s) < 1e-9, "corner", np.where(s > 0, "upper", "lower"))
     role = np.array(role, dtype=object)
-    part = np.tile(part_ring, n_rings + strip_rings).astype(object)
-    part[np.isin(role, ("strip", "fixed"))] = "strip"
+    part = np.concatenate([np.tile(part_ring, n_rings),
+                           np.full(strip_width * strip_rows, "strip")]).astype(object)
     labels = [f"n{i:03d}" for i in range(len(nodes))]
     fixed = np.where(role == "fixed")[0]
     return LipMesh(nodes, np.array(tris), fixed, role, part,
                    np.array(kinds, dtype=object), labels, name="parametric lip mesh")
+
+
+def extents(nodes: np.ndarray) -> np.ndarray:
+    """Bounding-box size (3,) of nodes (N, 3) along x, y, z."""
+    nodes = np.asarray(nodes, dtype=float)
+    return nodes.max(axis=0) - nodes.min(axis=0)
+
+
+# The paper's model size (Sec. 5): "2.35 units across, 2.83 units wide, and 5.05 units deep".
+# Our reading: the three numbers in the printed order are the extents along the model's x, y, z
+# (the paper lists axes in that order throughout; 'deep' is the depth axis z, the one a frontal
+# (x-y) view cannot see). Table 1 is in these units.
+PAPER_MODEL_EXTENT = (2.35, 2.83, 5.05)
+
+
+def unit_scale(mesh: LipMesh, extent: tuple[float, float, float] | None) -> np.ndarray:
+    """Per-axis factors (3,) from the mesh's coordinates (mm) to model units: the mesh's
+    bounding box (all nodes) becomes `extent` (x, y, z). None: keep mm (factors 1)."""
+    if extent is None:
+        return np.ones(3)
+    extent = np.asarray(extent, dtype=float)
+    if extent.shape != (3,) or not np.all(np.isfinite(extent)) or np.any(extent <= 0):
+        raise InputError(f"lip model setting model_extent: need three positive sizes (x, y, z), "
+                         f"got {extent.tolist()}")
+    return extent / extents(mesh.nodes)
 
 
 # -- canonical (MediaPipe) mesh -------------------------------------------------------------

@@ -1,8 +1,10 @@
-"""Learned deformation modes (Basu & Pentland 1997, eqs. 11-13).
+"""Learned deformation modes (Basu & Pentland 1997, Sec. 4.2, eqs. 11-13).
 
-The fitted displacements of the training frames, one row per frame (frames x DOF), give the
-sample covariance Lambda = X^T X / (F - 1) of the centred data X (eq. 11); its eigenvectors are
-the modes and its eigenvalues their variances (eqs. 12-13). We compute them by the SVD of X
+The covariance of the displacements is K_s^-1 E[F F^T] K_s^-T (eq. 11), K_s^-2 for unit IID
+forces (eq. 12); going the other way, the fitted displacements of the training frames, one row
+per frame (frames x DOF), give the sample covariance Lambda = X^T X / (F - 1) of the centred
+data X (eq. 13; the paper's A = X^T); its eigenvectors are the modes and its eigenvalues their
+variances (PCA, Sec. 4.2). We compute them by the SVD of X
 (X = U S V^T: modes V, variances S^2 / (F - 1)); the paper's route, an eigen-decomposition of
 the covariance (or, cheaper when F < DOF, of the Gram matrix X X^T), is kept for the tests.
 """
@@ -70,20 +72,20 @@ def pca_svd(data: np.ndarray, n_modes: int | None = None) -> Modes:
     min(frames - 1, DOF)."""
     data, n_modes = _check(data, n_modes, "lip modes")
     mean = data.mean(axis=0)
-    X = data - mean                                             # eq. 11 (centred)
+    X = data - mean                                             # A of eq. 13 (centred)
     _, s, vt = np.linalg.svd(X, full_matrices=False)
-    variances = s ** 2 / (len(data) - 1)                        # eqs. 12-13
+    variances = s ** 2 / (len(data) - 1)                        # eigenvalues of eq. 13
     return Modes(mean, _sign_fix(vt[:n_modes]), variances[:n_modes], float(variances.sum()),
                  len(data))
 
 
 def pca_covariance(data: np.ndarray, n_modes: int | None = None) -> Modes:
-    """The paper's route: eigen-decomposition of the sample covariance (eqs. 11-13)."""
+    """The paper's route: eigen-decomposition of the sample covariance (eq. 13)."""
     data, n_modes = _check(data, n_modes, "lip modes")
     mean = data.mean(axis=0)
     X = data - mean
-    cov = X.T @ X / (len(data) - 1)                             # eq. 11
-    w, v = np.linalg.eigh(cov)                                  # eqs. 12-13
+    cov = X.T @ X / (len(data) - 1)                             # eq. 13
+    w, v = np.linalg.eigh(cov)                                  # PCA, Sec. 4.2
     order = np.argsort(w)[::-1][:n_modes]
     return Modes(mean, _sign_fix(v[:, order].T), w[order], float(np.trace(cov)), len(data))
 

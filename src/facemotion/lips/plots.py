@@ -1,5 +1,5 @@
 """Figures of the lip model: the mesh (tracked and fixed nodes marked) and its learned modes
-(paper Fig. 9: mean displacement and mean +- 2 sd along the first modes).
+(Basu & Pentland 1997, Fig. 9: the mean displacement and some characteristic modes).
 
 Matplotlib `Figure` objects built without pyplot's global state; deterministic.
 """
@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from facemotion.lips.mesh import LipMesh
 
@@ -50,24 +51,48 @@ def plot_mesh(mesh: LipMesh, tracked: list[str] | np.ndarray | None = None,
 
 
 def plot_modes(mean_disp: np.ndarray, modes: np.ndarray, mesh: LipMesh,
-               sd: np.ndarray | None = None, n_show: int = 3) -> Figure:
-    """Paper Fig. 9: the mean deformed mesh, then mean -/+ 2 sd along the first modes
-    (frontal view, x-y; grey = rest shape). modes (k, N, 3); sd (k,) mm (default: 1)."""
+               sd: np.ndarray | None = None, fractions: np.ndarray | None = None,
+               unit_scale: np.ndarray | None = None, title: str = "",
+               n_show: int = 3) -> Figure:
+    """Basu & Pentland (1997) Fig. 9: the mean displacement and the first characteristic modes.
+
+    Column 1: the rest shape (grey) and rest + mean displacement (black); then, per mode, the
+    mean shape (grey) and mean -/+ 2 sd along the mode (blue/red). Top row frontal (x-y), bottom
+    row profile (z-y), drawn in mm. mean_disp (N, 3) and modes (k, N, 3) are in model units with
+    `unit_scale` (3,) model units per mm (default 1: mm); sd (k,) in model units; fractions (k,)
+    of the total variance, printed per mode.
+    """
     n_show = min(n_show, len(modes))
+    k_unit = np.ones(3) if unit_scale is None else np.asarray(unit_scale, dtype=float)
     sd = np.ones(len(modes)) if sd is None else np.asarray(sd)
-    fig = Figure(figsize=(3.2 * (n_show + 1), 6))
-    ax = fig.add_subplot(2, n_show + 1, 1)
-    _draw(ax, mesh, mesh.nodes, 0, 1, color="0.8")
-    _draw(ax, mesh, mesh.nodes + mean_disp, 0, 1, color="k")
-    ax.set_title("mean displacement")
-    for j in range(n_show):
-        for row, (sign, color) in enumerate(((-2, "tab:blue"), (2, "tab:red"))):
+    mean_mm = mean_disp / k_unit
+    fig = Figure(figsize=(3.4 * (n_show + 1), 6.4))
+    for row, (view, a, b) in enumerate(_VIEWS):
+        ax = fig.add_subplot(2, n_show + 1, row * (n_show + 1) + 1)
+        _draw(ax, mesh, mesh.nodes, a, b, color="0.75")
+        _draw(ax, mesh, mesh.nodes + mean_mm, a, b, color="k", lw=0.7)
+        ax.set_title(f"mean displacement\n{view}", fontsize=9)
+        for j in range(n_show):
             ax = fig.add_subplot(2, n_show + 1, row * (n_show + 1) + j + 2)
-            _draw(ax, mesh, mesh.nodes + mean_disp, 0, 1, color="0.8")
-            _draw(ax, mesh, mesh.nodes + mean_disp + sign * sd[j] * modes[j], 0, 1, color)
-            ax.set_title(f"mode {j + 1}: mean {'+' if sign > 0 else '-'} 2 sd")
+            base = mesh.nodes + mean_mm
+            _draw(ax, mesh, base, a, b, color="0.75")
+            for sign, color in ((-2, "tab:blue"), (2, "tab:red")):
+                _draw(ax, mesh, base + sign * sd[j] * modes[j] / k_unit, a, b, color, lw=0.7)
+            share = "" if fractions is None else f", {100 * fractions[j]:.1f} % of variance"
+            ax.set_title(f"mode {j + 1}{share}\n{view}", fontsize=9)
     for ax in fig.axes:
         ax.set_aspect("equal", adjustable="datalim")
         ax.tick_params(labelsize=7)
-    fig.tight_layout()
+    for i, ax in enumerate(fig.axes):
+        view = _VIEWS[i // (n_show + 1)]
+        ax.set_xlabel("xyz"[view[1]] + " (mm)", fontsize=8)
+        ax.set_ylabel("xyz"[view[2]] + " (mm)", fontsize=8)
+    handles = [Line2D([], [], color="0.75", label="rest shape / mean shape"),
+               Line2D([], [], color="k", label="rest + mean displacement"),
+               Line2D([], [], color="tab:blue", label="mean - 2 sd along the mode"),
+               Line2D([], [], color="tab:red", label="mean + 2 sd along the mode")]
+    fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.suptitle(title or "Mean displacement and characteristic modes "
+                 "(Basu & Pentland 1997, Fig. 9)", fontsize=11)
+    fig.tight_layout(rect=(0, 0.05, 1, 0.97))
     return fig
