@@ -1,5 +1,7 @@
 """Animate held-out sentences: the face driven by the k main markers beside the measured one."""
 
+import math
+
 import numpy as np
 
 from facemotion.animation import render_frames, still_frame, write_animation
@@ -16,14 +18,14 @@ def main(sm, log, prov):
     d = load_displacements(sm.input.npz)
     train, held = split_roles(d, sm.input.sentences)
     ranking = rank_markers(train.A, train.labels, method=sm.params.method)
-    k = min(cfg["k"], len(d.labels) - 1)
+    k = cfg["k"]  # k and sentences are checked against the data at parse time
     main_markers = ranking.labels_in_order[:k]
-    n = min(cfg["sentences"], len(held.sentences))
+    n = cfg["sentences"]
     part = held.subset(list(range(n)))
     pred = predict(ranking, k, part.A)
     measured = part.A.reshape(-1, 3, len(d.labels)).transpose(0, 2, 1)
     model = pred.reshape(-1, 3, len(d.labels)).transpose(0, 2, 1)
-    step = max(1, int(round(part.rate / cfg["fps"])))
+    step = math.ceil(part.rate / cfg["fps"] - 1e-9)  # every step-th frame: at most fps
     idx = np.arange(0, measured.shape[0], step)
     fps = part.rate / step
     log.info("animating %d frames of %d held-out sentence(s) at %.1f fps", len(idx), n, fps)

@@ -25,10 +25,10 @@ def main(sm, log, prov):
     save_figure(fig, [sm.output.png, sm.output.pdf], "error_curve", prov)
 
     # Trajectory of one marker in one held-out sentence, model with k main markers.
-    k = min(p.k, len(held.labels) - 1)
+    k = p.k  # checked against the markers at parse time (never clamped)
     main_markers = ranking.labels_in_order[:k]
     marker = p.marker
-    s = min(p.sentence, len(held.sentences)) - 1
+    s = p.sentence - 1  # checked against the held-out sentences at parse time
     one = held.subset([s])
     requested = marker
     if marker is None or marker not in held.labels:

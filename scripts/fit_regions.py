@@ -22,7 +22,7 @@ def main(sm, log, prov):
     save_figure(fig, [sm.output.png, sm.output.pdf], "regions", prov)
     fig = plot_orthogonal_directions(d.neutral, d.labels, ranking.R,
                                      ranking.labels_in_order,
-                                     n_pivots=min(sm.params.orthogonal_maps, k))
+                                     n_pivots=sm.params.orthogonal_maps)
     save_figure(fig, [sm.output.orth_png, sm.output.orth_pdf], "orthogonal_directions", prov)
 
 

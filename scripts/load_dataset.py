@@ -5,17 +5,23 @@ from facemotion.loading import load_dataset
 from facemotion.plots.gaps import plot_gaps
 from facemotion.provenance import save_figure, sidecar_for_existing, write_table
 from facemotion.snakemake_adapter import run_step
+from facemotion.validation import Limits
 
 
 def main(sm, log, prov):
     ds = sm.params.ds
     recordings = list(sm.params.recordings)
+    gaps, checks = sm.params.gaps, sm.params.checks
+    limits = Limits(max_distance_mm=gaps["max_distance_mm"],
+                    max_speed_mm_s=gaps["max_speed_mm_s"], outliers=gaps["outliers"],
+                    min_take_frames=checks["min_take_frames"],
+                    face_spread_mm=tuple(checks["face_spread_mm"]))
     loaded = load_dataset(
         recordings, ds["format"], units=ds["units"], head_markers=ds["head_markers"],
         exclude_markers=ds["exclude_markers"], include_markers=ds["include_markers"],
         train=[i - 1 for i in ds["train"]], heldout=[i - 1 for i in ds["heldout"]],
         max_interp_s=sm.params.gaps["max_interp_s"], long_gaps=sm.params.gaps["long_gaps"],
-        neutral=sm.params.neutral)
+        neutral=sm.params.neutral, limits=limits)
     prov.inputs = list(prov.inputs) + [r for r in recordings]
     d = loaded.displacements
     log.info("A: %d rows x %d markers from %d sentences", *d.A.shape, len(d.sentences))

@@ -1,6 +1,7 @@
 """One path by which every recording (virtual or real) enters the analysis.
 
-read -> check labels -> remove head motion -> select markers -> fill gaps -> displacements.
+read -> check labels -> validate (units, length, outliers: :mod:`facemotion.validation`) ->
+remove head motion -> select markers -> fill gaps -> displacements.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ from facemotion.displacements import (
 from facemotion.errors import InputError
 from facemotion.gaps import fill_gaps
 from facemotion.head_motion import align_head
-from facemotion.readers import read_recording, unit_scale
+from facemotion.readers import read_recording
+from facemotion.validation import Limits, check_take
 
 log = logging.getLogger("facemotion")
 
@@ -59,29 +61,36 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                  head_markers: list[str] = (), exclude_markers: list[str] = (),
                  include_markers: list[str] = (), train: list[int], heldout: list[int],
                  max_interp_s: float = 0.1, long_gaps: str = "pca",
-                 neutral: str = "first_frame") -> LoadedDataset:
+                 neutral: str = "first_frame", limits: Limits | None = None) -> LoadedDataset:
     """Load the sentences ``train + heldout`` (0-based indices into ``recordings``).
 
-    The dataset's sentences are ordered training sentences first, then held-out ones.
+    The dataset's sentences are ordered training sentences first, then held-out ones. Every
+    take is checked (:func:`facemotion.validation.check_take`, with ``limits``) on the markers
+    the analysis uses (the analysed and the head markers) before head motion is removed.
     """
+    limits = limits or Limits()
     order = list(train) + list(heldout)
     paths = [recordings[i] for i in order]
+    roles = ["train"] * len(train) + ["heldout"] * len(heldout)
     recs = []
     for i, p in enumerate(paths):
         log.info("reading %s (%d/%d)", p, i + 1, len(paths))
-        rec = read_recording(p, fmt, units=units)
-        if units is not None and rec.units_source == "file" \
-                and unit_scale(units, p) != unit_scale(rec.units, p):
-            log.warning("%s: the file says its units are %r, the subject sheet says %r: the "
-                        "file's units are used", p, rec.units, units)
-        recs.append(rec)
+        recs.append(read_recording(p, fmt, units=units))
     for rec in recs[1:]:
         check_same_take_layout(rec, recs[0])
     labels = recs[0].labels
-    for m in list(exclude_markers) + list(include_markers):
+    for m in list(exclude_markers) + list(include_markers) + list(head_markers):
         if m not in labels:
             raise InputError(f"{paths[0]}: marker {m!r} (named in the subject sheet) is not in "
                              "the data")
+    keep = [m for m in (include_markers or labels) if m not in set(exclude_markers)]
+    if len(keep) < 2:
+        raise InputError(f"{paths[0]}: fewer than 2 markers left after include/exclude")
+    used = keep + [m for m in head_markers if m not in set(keep)]
+    checks = []
+    for i, (rec, role) in enumerate(zip(recs, roles, strict=True)):
+        recs[i], found = check_take(rec.select(used), limits, sheet_units=units, role=role)
+        checks.append(found)
     # Head motion: one neutral head configuration (the first take's) for all takes.
     residuals = []
     if head_markers:
@@ -112,9 +121,6 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         recs = aligned
     else:
         residuals = [np.zeros(r.n_frames) for r in recs]
-    keep = [m for m in (include_markers or labels) if m not in set(exclude_markers)]
-    if len(keep) < 2:
-        raise InputError(f"{paths[0]}: fewer than 2 markers left after include/exclude")
     recs = [r.select(keep) for r in recs]
     dropped = [m for m in labels if m not in set(keep)]
     log.info("analysing %d of %d markers: %s", len(keep), len(labels), ", ".join(keep))
@@ -128,7 +134,10 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         reports.append(rep)
     names = [Path(p).stem for p in paths]
     disp = build_displacements(filled_recs, names, neutral=neutral, head_residuals=residuals)
-    roles = ["train"] * len(train) + ["heldout"] * len(heldout)
+    cols = [used.index(m) for m in keep]
+    gap_report = _aggregate_gap_reports(reports)
+    gap_report.insert(len(gap_report.columns) - 2, "outlier_frames",
+                      sum(c.outliers[:, cols].sum(axis=0) for c in checks).astype(int))
     sentences = pd.DataFrame({
         "sentence": names,
         "file": [str(p) for p in paths],
@@ -137,12 +146,17 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         "duration_s": [r.n_frames / r.rate for r in recs],
         "head_fit_rms_mm": [float(np.sqrt(np.mean(np.square(x)))) for x in residuals],
         "head_fit_max_mm": [float(np.max(x)) if len(x) else 0.0 for x in residuals],
+        "units": [c.units for c in checks],
+        "units_from": [c.units_source for c in checks],
+        "units_conflict": [c.units_conflict for c in checks],
+        "face_spread_mm": [c.spread_mm for c in checks],
+        "outlier_samples": [int(c.outliers.sum()) for c in checks],
     })
     rate = recs[0].rate
     starts = np.cumsum([0] + [r.n_frames for r in recs])[:-1] / rate
     return LoadedDataset(
         displacements=disp,
-        gap_report=_aggregate_gap_reports(reports),
+        gap_report=gap_report,
         sentences=sentences,
         time_s=np.arange(sum(r.n_frames for r in recs)) / rate,
         missing=np.concatenate(missing),

@@ -32,10 +32,12 @@ SIDECAR_SUFFIX = ".meta.json"
 # Output schemas: id -> (version, required columns). Tables are checked against their schema
 # before they are written, so a contract break fails loudly instead of shipping a wrong table.
 TABLE_SCHEMAS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "gap_report": ("1", ("marker", "frames", "missing_frames", "missing_fraction",
-                         "longest_gap_frames", "n_gaps", "filled_frames", "fill_method")),
-    "sentences": ("1", ("sentence", "file", "role", "frames", "duration_s",
-                        "head_fit_rms_mm", "head_fit_max_mm")),
+    "gap_report": ("2", ("marker", "frames", "missing_frames", "missing_fraction",
+                         "longest_gap_frames", "n_gaps", "outlier_frames", "filled_frames",
+                         "fill_method")),
+    "sentences": ("2", ("sentence", "file", "role", "frames", "duration_s",
+                        "head_fit_rms_mm", "head_fit_max_mm", "units", "units_from",
+                        "units_conflict", "face_spread_mm", "outlier_samples")),
     "r_values": ("2", ("order", "marker", "r", "r_rms", "r_rms_frame", "r_normalised",
                        "r_normalisation")),
     "rank": ("2", ("tolerance_mm", "r_normalisation", "epsilon_rank", "r22_norm_at_rank_mm",

@@ -66,6 +66,33 @@ def read_recording(path, fmt: str, units: str | None = None) -> Recording:
     return readers[fmt_key](path, units=units)
 
 
+def read_labels(path, fmt: str) -> list[str]:
+    """The marker labels of a file, reading no more of it than needed (TRC and CSV: the
+    header; C3D: the whole file, with its size check)."""
+    fmt_key = str(fmt).strip().lower()
+    if fmt_key == "c3d":
+        return read_c3d(path).labels
+    p = _check_readable(path)
+    try:
+        with open(p, encoding="utf-8-sig") as fh:
+            head = [fh.readline() for _ in range(4)]
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{p}: cannot read as text ({type(e).__name__})") from None
+    if fmt_key == "trc":
+        if not head[0].startswith("PathFileType") or not head[3].startswith("Frame#"):
+            raise InputError(f"{p}: not a TRC file (no PathFileType/Frame# header lines)")
+        return [x.strip() for x in _split_line(head[3])[2:] if x.strip()]
+    if fmt_key == "csv":
+        cols = next(csv.reader([head[0]]), [])
+        labels: list[str] = []
+        for c in cols[1:]:
+            lab = c.strip().rpartition("_")[0]
+            if lab and lab not in labels:
+                labels.append(lab)
+        return labels
+    raise InputError(f"{path}: unknown format {fmt!r} (supported: {', '.join(FORMATS)})")
+
+
 def _check_readable(path) -> Path:
     p = Path(path)
     if not p.exists():

@@ -94,7 +94,9 @@ def sentence_grams(A, groups, cumulative_sums: bool = False):
 def _check_n_pivots(n_pivots, n):
     if isinstance(n_pivots, bool) or not isinstance(n_pivots, int | np.integer) or n_pivots < 1:
         raise InputError(f"n_pivots: must be a positive integer, got {n_pivots!r}")
-    return min(int(n_pivots), n)
+    if n_pivots > n:
+        raise InputError(f"n_pivots: {n_pivots} pivots exceed the {n} markers")
+    return int(n_pivots)
 
 
 def _prepare(A, labels, row_sentence, cumulative_sums=False):

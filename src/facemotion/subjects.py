@@ -76,6 +76,21 @@ def _cell(row: pd.Series, col: str):
     return value or None
 
 
+def read_sheet_table(path: str | Path) -> pd.DataFrame:
+    """The sheet as a table of strings, read literally: no comment character (a '#' in a cell
+    is part of the cell), no NA spellings (an empty cell is '')."""
+    return pd.read_csv(path, sep="\t", dtype=str, keep_default_na=False)
+
+
+def _labels_cell(row: pd.Series, col: str, where: str, sid: str) -> list[str]:
+    labels = split_labels(row.get(col))
+    twice = sorted({m for m in labels if labels.count(m) > 1})
+    if twice:
+        raise InputError(f"{where}: column {col} of subject {sid!r} lists marker(s) "
+                         f"{', '.join(twice)} twice")
+    return labels
+
+
 def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
                        virtual_dir: str | Path = "results/virtual") -> dict[str, Subject]:
     """Read and check the subject sheet; recordings are resolved relative to the sheet.
@@ -87,9 +102,11 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
     if not path.is_file():
         raise InputError(f"subject sheet {path}: file not found")
     try:
-        sheet = pd.read_csv(path, sep="\t", dtype=str, keep_default_na=False, comment="#")
+        sheet = read_sheet_table(path)
     except Exception as exc:  # pandas raises many kinds for malformed files
-        raise InputError(f"subject sheet {path}: cannot be parsed as TSV ({exc})") from None
+        detail = str(exc).strip().splitlines()[0][:120] if str(exc).strip() else ""
+        raise InputError(f"subject sheet {path}: cannot be parsed as TSV "
+                         f"({type(exc).__name__}{': ' + detail if detail else ''})") from None
     missing = [c for c in SHEET_COLUMNS if c not in sheet.columns]
     if missing:
         raise InputError(f"subject sheet {path}: missing column(s) {missing}; "
@@ -160,16 +177,24 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
                     raise InputError(f"{where}: recordings {pattern!r} of subject {sid!r} "
                                      f"match no file (looked for {full})")
             else:
+                if Path(full).is_dir():
+                    raise InputError(f"{where}: recordings {full} of subject {sid!r} is a "
+                                     "directory; give a file or a glob such as "
+                                     f"{Path(pattern) / ('*.' + fmt)}")
                 if not Path(full).is_file():
                     raise InputError(f"{where}: recording file {full} of subject {sid!r} "
                                      "not found")
                 recordings = [full]
+            dirs = [r for r in recordings if not Path(r).is_file()]
+            if dirs:
+                raise InputError(f"{where}: recordings {pattern!r} of subject {sid!r} match "
+                                 f"{dirs[0]}, which is not a file")
             recordings = [str(Path(p)) for p in recordings]
         subjects[sid] = Subject(
             id=sid, recordings=recordings, format=fmt,
-            head_markers=split_labels(row.get("head_markers")),
-            exclude_markers=split_labels(row.get("exclude_markers")),
-            include_markers=split_labels(row.get("include_markers")),
+            head_markers=_labels_cell(row, "head_markers", where, sid),
+            exclude_markers=_labels_cell(row, "exclude_markers", where, sid),
+            include_markers=_labels_cell(row, "include_markers", where, sid),
             units=units, simulate=design, seed=seed, talker_seed=talker_seed,
             n_sentences=n_sentences, sentence_duration=sentence_duration)
     return subjects
@@ -226,22 +251,29 @@ def parse_sentences(spec, n: int, setting: str) -> list[int]:
     return [i - 1 for i in items]
 
 
+def n_heldout(n: int, heldout_fraction: float) -> int:
+    """Sentences held out by default: the fraction of n, rounded; 0 when the fraction is 0;
+    otherwise at least one and at most n - 1 (a subject with one sentence holds none out)."""
+    if not 0 <= heldout_fraction < 1:
+        raise InputError(f"setting heldout_fraction: must be in [0, 1), got {heldout_fraction!r}")
+    if heldout_fraction == 0 or n < 2:
+        return 0
+    return min(max(int(round(heldout_fraction * n)), 1), n - 1)
+
+
 def resolve_datasets(subjects: dict[str, Subject], datasets_cfg: dict | None,
                      heldout_fraction: float = DEFAULT_HELDOUT_FRACTION,
                      default_per_subject: bool = True) -> dict[str, Dataset]:
     """Datasets: one per subject by default, plus those defined in ``config.datasets``.
 
     When nothing says otherwise the last ``heldout_fraction`` of a subject's sentences
-    (rounded, at least one when the subject has two or more) is held out for evaluation.
+    (:func:`n_heldout`: rounded, at least one when the subject has two or more, none when the
+    fraction is 0) is held out for evaluation.
     """
     out: dict[str, Dataset] = {}
 
     def default_split(n: int) -> tuple[list[int], list[int]]:
-        n_held = int(round(heldout_fraction * n))
-        if n >= 2:
-            n_held = min(max(n_held, 1), n - 1)
-        else:
-            n_held = 0
+        n_held = n_heldout(n, heldout_fraction)
         return list(range(n - n_held)), list(range(n - n_held, n))
 
     if default_per_subject:

@@ -1,12 +1,22 @@
 # Configuration, subject sheet and datasets; helpers that list each stage's outputs.
 import os
 from pathlib import Path
+from types import SimpleNamespace
 
-import pandas as pd
 import yaml
-from snakemake.utils import min_version, validate
+from snakemake.utils import min_version
 
 from facemotion.errors import InputError
+from facemotion.settings import (
+    DataCounts,
+    check_lip_frames,
+    check_settings,
+    check_sweep,
+    data_counts,
+    exit_on_error,
+    validate_config,
+    validate_sheet,
+)
 from facemotion.subjects import read_subject_sheet, resolve_datasets
 
 min_version("9.0")
@@ -33,7 +43,9 @@ if not workflow.config_settings.configfiles:
     config.clear()
     config.update(_base)
 
-validate(config, workflow.source_path("../schemas/config.schema.yaml"))
+# Parse-time errors (a setting, the sheet, the data's counts): one line, exit status 1.
+with exit_on_error():
+    validate_config(config, workflow.source_path("../schemas/config.schema.yaml"))
 
 
 def _resolve(path):
@@ -48,25 +60,24 @@ def _resolve(path):
 
 SHARED_DATA = Path(config["shared_data"] or (REPO.parent / "shared" / "data"))
 SHEET = _resolve(config["subjects"])
-SUBJECTS = read_subject_sheet(
-    SHEET, shared_data=SHARED_DATA, virtual_dir="results/virtual"
-)
-for _ls, _spec in config["lips"]["subjects"].items():
-    if _spec["source"] == "grid" and not (SHARED_DATA / "grid").is_dir():
-        raise InputError(
-            f"setting lips.subjects.{_ls}: the GRID clips are read from {SHARED_DATA}/grid, "
-            "which does not exist; set shared_data or remove this lip subject"
-        )
-validate(
-    pd.read_csv(SHEET, sep="\t", dtype=str, keep_default_na=False, comment="#"),
-    workflow.source_path("../schemas/subjects.schema.yaml"),
-)
-DATASETS = resolve_datasets(
-    SUBJECTS,
-    config["datasets"],
-    heldout_fraction=config["heldout_fraction"],
-    default_per_subject=config["default_datasets"],
-)
+with exit_on_error():
+    SUBJECTS = read_subject_sheet(
+        SHEET, shared_data=SHARED_DATA, virtual_dir="results/virtual"
+    )
+    for _ls, _spec in config["lips"]["subjects"].items():
+        if _spec["source"] == "grid" and not (SHARED_DATA / "grid").is_dir():
+            raise InputError(
+                f"setting lips.subjects.{_ls}: the GRID clips are read from "
+                f"{SHARED_DATA}/grid, which does not exist; set shared_data or remove this "
+                "lip subject"
+            )
+    validate_sheet(SHEET, workflow.source_path("../schemas/subjects.schema.yaml"))
+    DATASETS = resolve_datasets(
+        SUBJECTS,
+        config["datasets"],
+        heldout_fraction=config["heldout_fraction"],
+        default_per_subject=config["default_datasets"],
+    )
 
 
 def dataset_recordings(wildcards):
@@ -175,84 +186,86 @@ def lip_inputs(wildcards):
 
 
 # ---- virtual talkers (sweep over the generator's talker seed) ----
-from facemotion.subjects import Dataset, Subject
+from facemotion.subjects import Dataset, Subject, n_heldout
 
 TALKERS = []
-for _i in range(config["virtual_talkers"]["n_talkers"]):
-    _sid = f"V{_i + 1:02d}"
-    _n = config["virtual_talkers"]["n_sentences"]
-    _design = config["virtual_talkers"]["design"]
-    if _design not in ("S1", "S2a", "S2b", "S"):
-        raise InputError(f"setting virtual_talkers.design: unknown design {_design!r}")
-    _head = [f"H{j}" for j in range(1, 7)]
-    SUBJECTS[_sid] = Subject(
-        id=_sid,
-        recordings=[
-            f"results/virtual/{_sid}/{_sid}_s{j + 1:02d}.c3d" for j in range(_n)
-        ],
-        format="c3d",
-        head_markers=_head,
-        exclude_markers=_head,
-        simulate=_design,
-        seed=1000 + _i,
-        talker_seed=_i + 1,
-        n_sentences=_n,
-    )
-    _held = max(1, round(config["heldout_fraction"] * _n))
-    DATASETS[_sid] = Dataset(
-        _sid, _sid, _sid, list(range(_n - _held)), list(range(_n - _held, _n))
-    )
-    TALKERS.append(_sid)
+with exit_on_error():
+    for _i in range(config["virtual_talkers"]["n_talkers"]):
+        _sid = f"V{_i + 1:02d}"
+        _n = config["virtual_talkers"]["n_sentences"]
+        _design = config["virtual_talkers"]["design"]
+        if _design not in ("S1", "S2a", "S2b", "S"):
+            raise InputError(
+                f"setting virtual_talkers.design: unknown design {_design!r}"
+            )
+        _head = [f"H{j}" for j in range(1, 7)]
+        SUBJECTS[_sid] = Subject(
+            id=_sid,
+            recordings=[
+                f"results/virtual/{_sid}/{_sid}_s{j + 1:02d}.c3d" for j in range(_n)
+            ],
+            format="c3d",
+            head_markers=_head,
+            exclude_markers=_head,
+            simulate=_design,
+            seed=1000 + _i,
+            talker_seed=_i + 1,
+            n_sentences=_n,
+        )
+        _held = n_heldout(_n, config["heldout_fraction"])
+        DATASETS[_sid] = Dataset(
+            _sid, _sid, _sid, list(range(_n - _held)), list(range(_n - _held, _n))
+        )
+        TALKERS.append(_sid)
 
-if not DATASETS:
-    raise InputError(
-        "no datasets: set default_datasets: true, define config.datasets or virtual_talkers"
-    )
+    if not DATASETS:
+        raise InputError(
+            "no datasets: set default_datasets: true, define config.datasets or "
+            "virtual_talkers"
+        )
 EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
 
 
-# ---- parameter sweeps ----
+# ---- every setting against the data's marker and sentence counts (parse time) ----
+from facemotion.readers import read_labels
 from facemotion.sweeps import expand_grid
+from facemotion.synth import marker_layout
 
 
-def n_analysed_markers(dataset):
-    """Markers in the analysis of a dataset, known at parse time (reads one file's labels)."""
-    subj = SUBJECTS[DATASETS[dataset].subject]
-    if subj.include_markers:
-        labels = subj.include_markers
-    elif subj.simulate:
-        labels = [str(i) for i in range(1, 58)] + [f"H{j}" for j in range(1, 7)]
-    else:
-        from facemotion.readers import read_recording
+def _file_labels(subj):
+    """A subject's marker labels, known at parse time (reads one file's header)."""
+    if subj.simulate:
+        return marker_layout(design=subj.simulate)[0]
+    return read_labels(subj.recordings[0], subj.format)
 
-        labels = read_recording(
-            subj.recordings[0], subj.format, units=subj.units
-        ).labels
-    return len([m for m in labels if m not in set(subj.exclude_markers)])
+
+def _lip_frames(ls, spec):
+    if spec["source"] == "grid":
+        from facemotion.readers import read_trc
+
+        tracks = lip_inputs(SimpleNamespace(lip_subject=ls))["tracks"]
+        return sum(read_trc(t).n_frames for t in tracks)
+    return spec.get("frames", 150)
 
 
 SWEEPS = {}
-for _name, _spec in config["sweeps"].items():
-    _dsets = _spec.get("datasets") or list(DATASETS)
-    for _d in _dsets:
-        if _d not in DATASETS:
-            raise InputError(f"setting sweeps.{_name}.datasets: unknown dataset {_d!r}")
-        _n = n_analysed_markers(_d)
-        for _sub, _labels in (_spec.get("marker_subsets") or {}).items():
-            _n = min(_n, len(_labels))
-        for _k in _spec.get("k", []):
-            if _k >= _n:
-                raise InputError(
-                    f"setting sweeps.{_name}.k: k={_k} must be smaller than the "
-                    f"{_n} markers of dataset {_d}"
-                )
-        for _t in _spec.get("train_sentences", []):
-            if _t > len(DATASETS[_d].train):
-                raise InputError(
-                    f"setting sweeps.{_name}.train_sentences: {_t} exceeds the "
-                    f"{len(DATASETS[_d].train)} training sentences of dataset {_d}"
-                )
-    SWEEPS[_name] = {"datasets": _dsets, "points": expand_grid(_spec)}
+with exit_on_error():
+    _labels = {
+        s: _file_labels(SUBJECTS[s]) for s in {ds.subject for ds in DATASETS.values()}
+    }
+    COUNTS = {
+        d: data_counts(SUBJECTS[ds.subject], ds, _labels[ds.subject])
+        for d, ds in DATASETS.items()
+    }
+    check_settings(config, COUNTS)
+    for _name, _spec in config["sweeps"].items():
+        check_sweep(_name, _spec, COUNTS)
+        _dsets = _spec.get("datasets") or list(DATASETS)
+        SWEEPS[_name] = {"datasets": _dsets, "points": expand_grid(_spec)}
+    check_lip_frames(
+        config,
+        {ls: _lip_frames(ls, spec) for ls, spec in config["lips"]["subjects"].items()},
+    )
 
 
 def sweep_point_files(wildcards):

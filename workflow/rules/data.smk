@@ -31,6 +31,7 @@ rule load_dataset:
         ds=lambda wc: dataset_params(wc.dataset),
         recordings=lambda wc: SUBJECTS[DATASETS[wc.dataset].subject].recordings,
         gaps=config["gaps"],
+        checks=config["checks"],
         neutral=config["neutral"],
     script:
         "../../scripts/load_dataset.py"

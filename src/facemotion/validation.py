@@ -1,0 +1,243 @@
+"""What every take must satisfy before it enters the analysis (the loading boundary).
+
+The readers check that a file is what it says it is (layout, frame count, fields). This module
+checks that what it says is plausible for a recording of a face, because a file can be
+well-formed and still give a plausible wrong number:
+
+* **Units.** A file's own units win over the subject sheet's; a sheet that disagrees is
+  reported (:func:`units_conflict`). The markers of a face lie 10-300 mm (the setting
+  ``checks.face_spread_mm``) from their centre (median over markers and frames; measured
+  41-63 mm on the shared AnimFace and GRID data): a spread outside that range means the
+  declared units are wrong (a CSV in metres read as millimetres, a TRC header saying ``m`` for
+  millimetre data) and stops the run, naming the units and the spread measured
+  (:func:`check_face_spread`).
+* **Length.** A take shorter than ``checks.min_take_frames`` frames is an error, training and
+  held out alike (a one-frame take has no motion: its error curve is all zeros).
+* **Physical plausibility** (:func:`find_outliers`). A sample farther than
+  ``gaps.max_distance_mm`` from the face's centre in its frame (the median of the markers'
+  positions), or reached by a jump faster than ``gaps.max_speed_mm_s`` from the marker's
+  neighbouring samples, is an outlier: a corrupt value (1e30, a flipped bit), a marker swap or
+  a tracker jump. Outliers go in the gap report and the log; they are treated as gaps (removed,
+  then filled and flagged like any missing sample; ``gaps.outliers: gaps``, the default) or stop
+  the run (``gaps.outliers: error``).
+
+A jump faster than the limit splits a marker's trajectory into pieces; the longest piece is
+taken as the marker and the samples of every other piece are outliers. An isolated spike is
+a piece of one sample; a stretch during which the tracker followed another point is a short
+piece between two jumps.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from facemotion.errors import InputError
+from facemotion.gaps import runs
+from facemotion.readers import unit_scale
+from facemotion.recording import Recording
+
+log = logging.getLogger("facemotion")
+
+OUTLIER_MODES = ("gaps", "error")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """The plausibility limits (settings ``gaps.*`` and ``checks.*``; defaults in the README)."""
+
+    max_distance_mm: float = 250.0
+    max_speed_mm_s: float = 1000.0
+    outliers: str = "gaps"
+    min_take_frames: int = 10
+    face_spread_mm: tuple[float, float] = (10.0, 300.0)
+
+    def __post_init__(self) -> None:
+        if self.outliers not in OUTLIER_MODES:
+            raise InputError(f"setting gaps.outliers: must be one of {', '.join(OUTLIER_MODES)}"
+                             f", got {self.outliers!r}")
+        if not (np.isfinite(self.max_distance_mm) and self.max_distance_mm > 0):
+            raise InputError(f"setting gaps.max_distance_mm: must be positive, got "
+                             f"{self.max_distance_mm!r}")
+        if not (np.isfinite(self.max_speed_mm_s) and self.max_speed_mm_s > 0):
+            raise InputError(f"setting gaps.max_speed_mm_s: must be positive, got "
+                             f"{self.max_speed_mm_s!r}")
+        lo, hi = self.face_spread_mm
+        if not 0 < lo < hi:
+            raise InputError(f"setting checks.face_spread_mm: need 0 < low < high, got "
+                             f"{list(self.face_spread_mm)}")
+        if int(self.min_take_frames) < 2:
+            raise InputError(f"setting checks.min_take_frames: must be at least 2, got "
+                             f"{self.min_take_frames!r}")
+
+
+@dataclass
+class TakeCheck:
+    """What the checks found in one take."""
+
+    outliers: np.ndarray        # (frames, markers) bool
+    units: str                  # the units the file's numbers were read in
+    units_source: str           # "file", "sheet" or "default"
+    units_conflict: str         # "" or what the sheet said instead
+    spread_mm: float            # median distance of the markers to their centroid
+
+
+def units_conflict(rec: Recording, sheet_units: str | None) -> str:
+    """'' or a note when the sheet's units differ from those the file states (the file wins)."""
+    if sheet_units is None or rec.units_source != "file":
+        return ""
+    where = rec.source or "recording"
+    if unit_scale(sheet_units, where) == unit_scale(rec.units, where):
+        return ""
+    return f"sheet says {sheet_units}"
+
+
+def face_spread(rec: Recording) -> float:
+    """Median over frames of the median distance (mm) of the markers to their centre.
+
+    The centre is the per-axis median of the markers (a robust centroid: one corrupt sample
+    of 1e30 mm does not move it), over frames with at least 3 markers measured.
+    """
+    pts = rec.points
+    ok = np.isfinite(pts).all(axis=2)
+    frames = np.flatnonzero(ok.sum(axis=1) >= 3)
+    if frames.size == 0:
+        return float("nan")
+    p = np.where(ok[frames, :, None], pts[frames], np.nan)
+    with np.errstate(invalid="ignore", over="ignore"):
+        d = np.linalg.norm(p - np.nanmedian(p, axis=1, keepdims=True), axis=2)
+    return float(np.median(np.nanmedian(d, axis=1)))
+
+
+def check_face_spread(rec: Recording, limits: Limits) -> float:
+    """The spread of the face (:func:`face_spread`); InputError if outside the limits."""
+    spread = face_spread(rec)
+    lo, hi = limits.face_spread_mm
+    where = rec.source or "recording"
+    if not np.isfinite(spread):
+        raise InputError(f"{where}: no frame has 3 or more markers measured")
+    if not lo <= spread <= hi:
+        declared = {"file": "as the file declares", "sheet": "as the subject sheet says",
+                    "default": "the default for a file that does not say"}[rec.units_source]
+        raise InputError(
+            f"{where}: the markers lie a median {spread:.3g} mm from their centre when "
+            f"read in {rec.units} ({declared}); a face spans {lo:g}-{hi:g} mm "
+            f"(setting checks.face_spread_mm): the units are wrong, fix the "
+            f"{'file' if rec.units_source == 'file' else 'sheet'}'s units")
+    return spread
+
+
+def check_take_length(rec: Recording, limits: Limits, role: str = "") -> None:
+    if rec.n_frames < limits.min_take_frames:
+        raise InputError(f"{rec.source or 'recording'}: {role + ' ' if role else ''}take has "
+                         f"{rec.n_frames} frame(s), fewer than the minimum "
+                         f"{limits.min_take_frames} (setting checks.min_take_frames)")
+
+
+def _reachable(x: np.ndarray, frames: np.ndarray, rate: float, vmax: float) -> np.ndarray:
+    """Which samples x (m, 3) at ``frames`` belong to one physically possible trajectory.
+
+    Jumps faster than ``vmax`` split the samples into pieces. The longest piece is kept; going
+    outwards from it, a piece is kept when it can be reached from the nearest kept sample at
+    no more than ``vmax`` (over the time between them), so that an isolated spike is dropped but
+    the samples after it are kept, and a step that lasts is dropped in full.
+    """
+    speed = np.linalg.norm(np.diff(x, axis=0), axis=1) * rate / np.diff(frames)
+    cuts = np.flatnonzero(~(speed <= vmax))
+    keep = np.ones(len(x), dtype=bool)
+    if cuts.size == 0:
+        return keep
+    bounds = np.concatenate([[0], cuts + 1, [len(x)]])
+    pieces = list(zip(bounds[:-1], bounds[1:], strict=True))
+    anchor = int(np.argmax([b - a for a, b in pieces]))
+    keep[:] = False
+    a, b = pieces[anchor]
+    keep[a:b] = True
+
+    def fits(i: int, k: int) -> bool:
+        v = np.linalg.norm(x[i] - x[k]) * rate / abs(frames[i] - frames[k])
+        return bool(v <= vmax)
+
+    last = b - 1
+    for a, b in pieces[anchor + 1:]:
+        if fits(a, last):
+            keep[a:b] = True
+            last = b - 1
+    first = pieces[anchor][0]
+    for a, b in reversed(pieces[:anchor]):
+        if fits(b - 1, first):
+            keep[a:b] = True
+            first = a
+    return keep
+
+
+def find_outliers(rec: Recording, limits: Limits) -> tuple[np.ndarray, list[str]]:
+    """(frames, markers) mask of implausible samples, and one note per affected marker."""
+    pts = np.array(rec.points, dtype=float)
+    F, n, _ = pts.shape
+    ok = np.isfinite(pts).all(axis=2)
+    out = np.zeros((F, n), dtype=bool)
+    far = np.zeros((F, n), dtype=bool)
+    dist = np.zeros((F, n))
+    # distance from the face centre: the per-axis median of the markers measured in the frame
+    enough = ok.sum(axis=1) >= 3
+    if enough.any():
+        p = np.where(ok[..., None], pts, np.nan)[enough]
+        centre = np.nanmedian(p, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", over="ignore"):
+            dist[enough] = np.nan_to_num(np.linalg.norm(p - centre, axis=2), nan=0.0)
+        far = dist > limits.max_distance_mm
+    out |= far
+    fast = np.zeros((F, n), dtype=bool)
+    top_speed = np.zeros(n)
+    for j in range(n):
+        idx = np.flatnonzero(ok[:, j] & ~far[:, j])
+        if idx.size >= 2:
+            keep = _reachable(pts[idx, j], idx, rec.rate, limits.max_speed_mm_s)
+            fast[idx[~keep], j] = True
+            if not keep.all():
+                with np.errstate(invalid="ignore", over="ignore"):
+                    v = np.linalg.norm(np.diff(pts[idx, j], axis=0), axis=1) * rec.rate \
+                        / np.diff(idx)
+                top_speed[j] = float(np.nanmax(v))
+    out |= fast
+    notes = []
+    for j in np.flatnonzero(out.any(axis=0)):
+        first = int(np.flatnonzero(out[:, j])[0])
+        why = []
+        if far[:, j].any():
+            why.append(f"{int(far[:, j].sum())} at up to {np.max(dist[:, j]):.3g} mm from the face "
+                       f"centre (limit {limits.max_distance_mm:g} mm, gaps.max_distance_mm)")
+        if fast[:, j].any():
+            why.append(f"{int(fast[:, j].sum())} reached at up to {top_speed[j]:.3g} mm/s "
+                       f"(limit {limits.max_speed_mm_s:g} mm/s, gaps.max_speed_mm_s)")
+        notes.append(f"marker {rec.labels[j]!r}: {int(out[:, j].sum())} outlier sample(s) in "
+                     f"{len(runs(out[:, j]))} run(s), first at frame {first + 1} "
+                     f"(t = {first / rec.rate:.3f} s): {'; '.join(why)}")
+    return out, notes
+
+
+def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,
+               role: str = "") -> tuple[Recording, TakeCheck]:
+    """All the checks of one take; returns the take with its outliers removed (NaN) and what
+    was found. InputError on wrong units, a short take, or outliers with outliers: error."""
+    where = rec.source or "recording"
+    conflict = units_conflict(rec, sheet_units)
+    if conflict:
+        log.warning("%s: the file declares %s, the subject sheet %s: the file's units are "
+                    "used", where, rec.units, sheet_units)
+    check_take_length(rec, limits, role)
+    spread = check_face_spread(rec, limits)
+    mask, notes = find_outliers(rec, limits)
+    if notes:
+        if limits.outliers == "error":
+            raise InputError(f"{where}: {notes[0]} (gaps.outliers is 'error')")
+        for note in notes:
+            log.warning("%s: %s; treated as gaps", where, note)
+    pts = rec.points.copy()
+    pts[mask] = np.nan
+    clean = Recording(list(rec.labels), pts, rec.rate, rec.source, rec.filled.copy(),
+                      rec.units, rec.units_source)
+    return clean, TakeCheck(mask, rec.units, rec.units_source, conflict, spread)

@@ -1,0 +1,100 @@
+"""Parse-time checks of the settings against the data's counts: refused, never clamped."""
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+
+from facemotion.errors import InputError
+from facemotion.settings import (
+    DataCounts,
+    check_lip_frames,
+    check_settings,
+    check_sweep,
+    validate_config,
+)
+from facemotion.subjects import n_heldout
+
+SCHEMA = Path(__file__).resolve().parents[1] / "workflow" / "schemas" / "config.schema.yaml"
+
+
+@pytest.fixture()
+def config():
+    cfg = yaml.safe_load((SCHEMA.parent.parent.parent / "config" / "smoke.yaml").read_text())
+    validate_config(cfg, SCHEMA)  # fills in the defaults
+    return cfg
+
+
+COUNTS = {"S1": DataCounts(markers=20, train=4, heldout=2, labels=tuple(map(str, range(20)))),
+          "S2": DataCounts(markers=20, train=5, heldout=0, labels=tuple(map(str, range(20))))}
+
+
+def test_defaults_pass(config):
+    check_settings(config, COUNTS)
+
+
+@pytest.mark.parametrize("path,value,match", [
+    (("fit", "k"), [20], r"setting fit\.k: k = 20 main markers must be fewer than the markers "
+                         r"of dataset S1, which analyses 20 markers"),
+    (("animation", "k"), 20, r"setting animation\.k: k = 20"),
+    (("animation", "sentences"), 3, r"setting animation\.sentences: 3 sentences to animate but "
+                                    r"dataset S1, which holds out 2"),
+    (("eval", "trajectory_k"), 100, r"setting eval\.trajectory_k: k = 100"),
+    (("eval", "trajectory_sentence"), 9, r"setting eval\.trajectory_sentence: held-out sentence"
+                                         r" 9 does not exist in dataset S1"),
+    (("qr", "agreement_k"), [5, 21], r"setting qr\.agreement_k: k = 21 exceeds"),
+    (("qr", "sweep_pivots"), 21, r"setting qr\.sweep_pivots: 21 pivots"),
+    (("qr", "optimality_k_max"), 20, r"setting qr\.optimality_k_max: 20 must be fewer"),
+    (("fit", "orthogonal_maps"), 5, r"setting fit\.orthogonal_maps: 5 maps.*k = 4"),
+])
+def test_each_setting_is_refused_not_clamped(config, path, value, match):
+    cfg = copy.deepcopy(config)
+    cfg[path[0]][path[1]] = value
+    with pytest.raises(InputError, match=match):
+        check_settings(cfg, COUNTS)
+
+
+def test_held_out_settings_do_not_apply_without_held_out_sentences(config):
+    cfg = copy.deepcopy(config)
+    cfg["eval"]["trajectory_sentence"] = 3
+    check_settings(cfg, {"S2": COUNTS["S2"]})
+    cfg["animation"]["enabled"] = False
+    cfg["animation"]["sentences"] = 5
+    check_settings(cfg, {"S1": DataCounts(20, 4, 3)})
+
+
+def test_heldout_fraction_zero_holds_nothing_out():
+    assert [n_heldout(n, 0) for n in (1, 2, 10, 40)] == [0, 0, 0, 0]
+    assert [n_heldout(n, 0.25) for n in (1, 2, 10, 40)] == [0, 1, 2, 10]
+    assert n_heldout(3, 0.01) == 1  # asked for some: at least one
+
+
+def test_sweeps_and_lips(config):
+    with pytest.raises(InputError, match=r"sweeps\.s\.k: k=20"):
+        check_sweep("s", {"k": [20]}, COUNTS)
+    with pytest.raises(InputError, match=r"sweeps\.s\.train_sentences: 5 exceeds the 4"):
+        check_sweep("s", {"datasets": ["S1"], "train_sentences": [5]}, COUNTS)
+    with pytest.raises(InputError, match=r"sweeps\.s\.marker_subsets\.lips: marker\(s\) 40"):
+        check_sweep("s", {"marker_subsets": {"lips": ["1", "40"]}}, COUNTS)
+    with pytest.raises(InputError, match=r"sweeps\.s\.datasets: unknown dataset 'X'"):
+        check_sweep("s", {"datasets": ["X"]}, COUNTS)
+    check_lip_frames(config, {"virtual": 60})
+    with pytest.raises(InputError, match=r"lips\.test_frames.*outside 1\.\.50"):
+        check_lip_frames(config, {"virtual": 50})
+    cfg = copy.deepcopy(config)
+    cfg["lips"]["n_modes"] = 50
+    with pytest.raises(InputError, match=r"setting lips\.n_modes: 50 modes need more than 50"):
+        check_lip_frames(cfg, {"virtual": 60})
+
+
+def test_schema_errors_are_one_line_naming_the_setting(config):
+    cfg = copy.deepcopy(config)
+    cfg["qr"]["tolerances_mm"] = [-1]
+    with pytest.raises(InputError, match=r"^setting qr\.tolerances_mm\.0: -1 is less than or "
+                                         r"equal to the minimum of 0$"):
+        validate_config(cfg, SCHEMA)
+    cfg = copy.deepcopy(config)
+    cfg["animation"]["formt"] = "gif"
+    with pytest.raises(InputError, match=r"^setting animation: Additional properties .*formt"):
+        validate_config(cfg, SCHEMA)

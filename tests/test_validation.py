@@ -1,0 +1,149 @@
+"""The validation layer: outliers found at exactly the planted samples, none on real data;
+units checked by the spread of the face; take length; the sheet's units never override the
+file's. References: planted ground truth, and the real recordings in ../shared/data."""
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from facemotion.errors import InputError
+from facemotion.readers import read_c3d, read_recording, write_c3d, write_csv
+from facemotion.recording import Recording
+from facemotion.validation import (
+    Limits,
+    check_face_spread,
+    check_take,
+    face_spread,
+    find_outliers,
+)
+
+ROOT = Path(os.environ.get("FACEMOTION_SHARED_DATA",
+                           Path(__file__).resolve().parents[2] / "shared" / "data"))
+REAL = sorted(ROOT.glob("animface/*.c3d")) + sorted(ROOT.glob("grid/*.trc"))
+
+
+@pytest.fixture(scope="module")
+def jaw():
+    """400 frames of the AnimFace jaw take (60 Hz, 41 markers)."""
+    rec = read_c3d(ROOT / "animface" / "animface_jaw.c3d")
+    return Recording(rec.labels, rec.points[200:600], rec.rate, source="jaw")
+
+
+def planted(rec, spots, values):
+    pts = rec.points.copy()
+    truth = np.zeros(pts.shape[:2], dtype=bool)
+    for (f, j), v in zip(spots, values, strict=True):
+        pts[f, j] = v
+        truth[f, j] = True
+    return Recording(rec.labels, pts, rec.rate, source="planted"), truth
+
+
+def test_no_outlier_and_plausible_spread_on_every_real_take():
+    assert len(REAL) == 8
+    for path in REAL:
+        rec = read_recording(path, path.suffix[1:])
+        mask, notes = find_outliers(rec, Limits())
+        assert not mask.any(), (path.name, notes[:3])
+        assert 40 < face_spread(rec) < 65, path.name
+
+
+def test_planted_spikes_are_found_exactly(jaw):
+    rng = np.random.default_rng(0)
+    spots = [(int(f), int(j)) for f, j in zip(rng.choice(400, 12, replace=False),
+                                              rng.integers(0, 41, 12), strict=True)]
+    centre = np.median(jaw.points, axis=1)
+    values = []
+    for i, (f, j) in enumerate(spots):
+        if i == 0:
+            values.append(np.array([1e30, 0, 0]))                 # a corrupt value
+        elif i % 2:
+            values.append(jaw.points[f, j] + [0, 0, 800.0])       # a flipped exponent bit
+        else:
+            values.append(jaw.points[f, j] + [30.0, 0, 0])        # 30 mm in 1/60 s: 1.8 m/s
+    rec, truth = planted(jaw, spots, values)
+    mask, notes = find_outliers(rec, Limits())
+    np.testing.assert_array_equal(mask, truth)
+    assert len(notes) == len({j for _, j in spots})
+    assert centre.shape == (400, 3)
+
+
+def test_a_stretch_on_another_point_and_a_lasting_step(jaw):
+    j = jaw.index("Chin")
+    pts = jaw.points.copy()
+    pts[100:110, j] += [0, 40.0, 0]       # the tracker follows another point for 10 frames
+    pts[300:, j] += [0, 0, 25.0]          # a step that lasts to the end (100 frames)
+    rec = Recording(jaw.labels, pts, jaw.rate, source="swap")
+    mask, notes = find_outliers(rec, Limits())
+    truth = np.zeros_like(mask)
+    truth[100:110, j] = truth[300:, j] = True
+    np.testing.assert_array_equal(mask, truth)
+    assert "marker 'Chin': 110 outlier sample(s) in 2 run(s), first at frame 101" in notes[0]
+
+
+def test_gap_is_bridged_at_the_speed_over_the_gap(jaw):
+    # a marker missing for 30 frames comes back 20 mm away: 20 mm in 0.5 s is plausible
+    j = 3
+    pts = jaw.points.copy()
+    pts[200:230, j] = np.nan
+    pts[230:, j] += [20.0, 0, 0]
+    rec = Recording(jaw.labels, pts, jaw.rate, source="gap")
+    assert not find_outliers(rec, Limits())[0].any()
+
+
+def test_outliers_error_mode_names_marker_and_frame(jaw):
+    rec, _ = planted(jaw, [(50, 2)], [jaw.points[50, 2] + [0, 0, 800.0]])
+    with pytest.raises(InputError, match=rf"planted: marker '{jaw.labels[2]}': 1 outlier "
+                       r"sample\(s\).*frame 51 \(t = 0\.833 s\): 1 at up to 7\d\d mm from the face centre \(limit 250 mm.*gaps\.outliers is .error."):
+        check_take(rec, Limits(outliers="error"))
+    clean, found = check_take(rec, Limits())
+    assert np.isnan(clean.points[50, 2]).all() and found.outliers.sum() == 1
+    assert np.isfinite(clean.points[np.arange(400) != 50]).all()
+
+
+MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+
+
+@pytest.mark.parametrize("true,declared", [("m", "mm"), ("mm", "m"), ("cm", "mm"),
+                                           ("mm", "cm"), ("in", "mm"), ("mm", "in")])
+def test_wrong_units_stop_with_the_spread_measured(tmp_path, jaw, true, declared):
+    """A face recorded in ``true`` units, read in the ``declared`` ones (a CSV in metres read
+    as millimetres, ...): every such mix-up is outside 10-300 mm."""
+    write_csv(tmp_path / "take.csv", Recording(jaw.labels, jaw.points / MM[true], jaw.rate))
+    rec = read_recording(tmp_path / "take.csv", "csv", units=declared)
+    measured = face_spread(jaw) / MM[true] * MM[declared]
+    with pytest.raises(InputError, match=rf"take\.csv: the markers lie a median "
+                       rf"{re.escape(f'{measured:.3g}')} mm from their centre when read in {declared} "
+                       r"\(as the subject sheet says\); a face spans 10-300 mm"):
+        check_face_spread(rec, Limits())
+    right = read_recording(tmp_path / "take.csv", "csv", units=true)
+    assert check_face_spread(right, Limits()) == pytest.approx(face_spread(jaw), rel=1e-4)
+
+
+def test_right_units_pass_and_the_file_wins_over_the_sheet(tmp_path, jaw):
+    write_c3d(tmp_path / "take.c3d", jaw)
+    rec = read_recording(tmp_path / "take.c3d", "c3d", units="m")  # the sheet says m
+    clean, found = check_take(rec, Limits(), sheet_units="m")
+    assert (found.units, found.units_source, found.units_conflict) == ("mm", "file",
+                                                                       "sheet says m")
+    np.testing.assert_allclose(clean.points, jaw.points, atol=1e-4)
+    assert check_take(rec, Limits(), sheet_units="mm")[1].units_conflict == ""
+
+
+def test_short_take(jaw):
+    one = Recording(jaw.labels, jaw.points[:1], jaw.rate, source="one.c3d")
+    with pytest.raises(InputError, match=r"one\.c3d: heldout take has 1 frame\(s\), fewer than "
+                       r"the minimum 10 \(setting checks\.min_take_frames\)"):
+        check_take(one, Limits(), role="heldout")
+    check_take(Recording(jaw.labels, jaw.points[:10], jaw.rate), Limits())
+
+
+def test_bad_limits_name_the_setting():
+    with pytest.raises(InputError, match="gaps.outliers"):
+        Limits(outliers="drop")
+    with pytest.raises(InputError, match="checks.face_spread_mm"):
+        Limits(face_spread_mm=(300, 10))
+    with pytest.raises(InputError, match="gaps.max_speed_mm_s"):
+        Limits(max_speed_mm_s=0)
