@@ -96,7 +96,8 @@ def test_gap_is_bridged_at_the_speed_over_the_gap(jaw):
 def test_outliers_error_mode_names_marker_and_frame(jaw):
     rec, _ = planted(jaw, [(50, 2)], [jaw.points[50, 2] + [0, 0, 800.0]])
     with pytest.raises(InputError, match=rf"planted: marker '{jaw.labels[2]}': 1 outlier "
-                       r"sample\(s\).*frame 51 \(t = 0\.833 s\): 1 at up to 7\d\d mm from the face centre \(limit 250 mm.*gaps\.outliers is .error."):
+                       r"sample\(s\).*frame 51 \(t = 0\.833 s\): 1 at up to 7\d\d mm from the "
+                       r"face centre \(limit 250 mm.*gaps\.outliers is .error."):
         check_take(rec, Limits(outliers="error"))
     clean, found = check_take(rec, Limits())
     assert np.isnan(clean.points[50, 2]).all() and found.outliers.sum() == 1
@@ -115,7 +116,8 @@ def test_wrong_units_stop_with_the_spread_measured(tmp_path, jaw, true, declared
     rec = read_recording(tmp_path / "take.csv", "csv", units=declared)
     measured = face_spread(jaw) / MM[true] * MM[declared]
     with pytest.raises(InputError, match=rf"take\.csv: the markers lie a median "
-                       rf"{re.escape(f'{measured:.3g}')} mm from their centre when read in {declared} "
+                       rf"{re.escape(f'{measured:.3g}')} mm from their centre when read in "
+                       rf"{declared} "
                        r"\(as the subject sheet says\); a face spans 10-300 mm"):
         check_face_spread(rec, Limits())
     right = read_recording(tmp_path / "take.csv", "csv", units=true)
