@@ -20,6 +20,8 @@ def r_values_table(ranking, normalisation):
         "r_rms_frame": ranking.normalised_r("per_frame"),
         "r_normalised": ranking.normalised_r(normalisation),
         "r_normalisation": normalisation,
+        # False past the pivots the QR rule chose (fewer rows than markers, or k_max)
+        "ranked": [i < ranking.n_ranked for i in range(len(ranking.r))],
     })
 
 

@@ -7,12 +7,7 @@ marker ``labels[j]``, in mm.
 
 from __future__ import annotations
 
-import io
-import os
-import tempfile
-import zipfile
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -20,7 +15,6 @@ from facemotion.errors import InputError
 from facemotion.recording import Recording
 
 NEUTRAL_MODES = ("first_frame", "mean_first_10")
-_ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed entry date: byte-identical files on rerun
 
 
 @dataclass
@@ -208,62 +202,18 @@ def build_displacements(recordings: list[Recording], names: list[str],
         sentence_neutral=sn)
 
 
-def _npy_bytes(a: np.ndarray) -> bytes:
-    buf = io.BytesIO()
-    np.lib.format.write_array(buf, np.array(a, order="C"), allow_pickle=False)
-    return buf.getvalue()
-
-
 def save_displacements(path, d: Displacements) -> None:
-    """Write ``d`` as an npz (deflate; fixed entry dates, so reruns are byte-identical)."""
-    arrays = {
-        "A": d.A, "labels": np.array(d.labels, dtype=str),
-        "sentences": np.array(d.sentences, dtype=str),
-        "row_sentence": d.row_sentence.astype(np.int64),
-        "row_frame": d.row_frame.astype(np.int64), "rate": np.array(d.rate),
-        "fill_mask": d.fill_mask.astype(bool), "head_residual": d.head_residual,
-        "neutral": d.neutral,
-    }
-    if d.sentence_neutral is not None:
-        arrays["sentence_neutral"] = d.sentence_neutral
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh, zipfile.ZipFile(fh, "w") as zf:
-            for name, a in arrays.items():
-                info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_DATE)
-                info.compress_type = zipfile.ZIP_DEFLATED
-                info.external_attr = 0o644 << 16
-                zf.writestr(info, _npy_bytes(a), compresslevel=6)
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write ``d`` as an uncompressed npz whose A can be read in blocks of rows (see
+    :mod:`facemotion.displacement_file`); fixed entry dates: reruns are byte-identical."""
+    from facemotion.displacement_file import write_displacements
+
+    write_displacements(path, d)
 
 
 def load_displacements(path) -> Displacements:
-    """Read a file written by :func:`save_displacements`."""
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: displacements file not found")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as e:
-        raise InputError(f"{p}: cannot read displacements npz ({e})") from None
-    need = ["A", "labels", "sentences", "row_sentence", "row_frame", "rate", "fill_mask",
-            "head_residual", "neutral"]
-    lacking = [k for k in need if k not in data]
-    if lacking:
-        raise InputError(f"{p}: displacements file lacks array(s) {', '.join(lacking)}")
-    if np.size(data["rate"]) != 1:
-        raise InputError(f"{p}: 'rate' must be a single number, got shape {data['rate'].shape}")
-    return Displacements(
-        A=data["A"], labels=[str(x) for x in data["labels"]],
-        sentences=[str(x) for x in data["sentences"]], row_sentence=data["row_sentence"],
-        row_frame=data["row_frame"], rate=float(np.ravel(data["rate"])[0]),
-        fill_mask=data["fill_mask"],
-        head_residual=data["head_residual"], neutral=data["neutral"],
-        sentence_neutral=data.get("sentence_neutral"))
+    """Read a file written by :func:`save_displacements` (or an older deflated npz) whole.
+
+    For A larger than memory use :func:`facemotion.displacement_file.open_displacements`."""
+    from facemotion.displacement_file import open_displacements
+
+    return open_displacements(path).load()

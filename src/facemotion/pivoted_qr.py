@@ -45,15 +45,30 @@ so that diag(R) >= 0):
     returns noise (and may pick different pivots among the near-dependent columns).
 ``"auto"``
     The Gram route, falling back to TSQR when some r_kk / r_11 < ``GRAM_RATIO_LIMIT`` (1e-4,
-    i.e. a relative error in r_kk above ~1e-8), e.g. when a marker is a copy of another.
+    i.e. a relative error in r_kk above ~1e-8), e.g. when a marker is a copy of another; with
+    ``k_max`` set and at least ``RANDOMIZED_MIN_N`` markers, the randomized route.
+``"randomized"``
+    The first ``k_max`` pivots from a Gaussian sketch of A, refined on A itself (see
+    :mod:`facemotion.randomized_selection`); two passes over A of O(rows n k_max) flops
+    instead of the Gram's O(rows n^2).
 
-Bad input raises :class:`facemotion.errors.InputError`: fewer rows than markers (3F < n makes A
-rank deficient by construction), NaN or inf in A, and a static marker (a column whose largest
-absolute value is below 1e-12 mm: it has no motion to rank, and its r_kk would be exactly zero).
+A may be an array or a :class:`facemotion.displacement_file.RowBlocks` (A on disk): the
+"gram", "tsqr" and "randomized" routes read it in blocks of rows, holding one block at a time;
+"scipy" reads it whole. The Gram pass runs on ``threads`` cores (:mod:`facemotion.gram`).
+
+Fewer rows than markers (e.g. 150 frames of 457 landmarks): A has rank at most rows, so only
+the first ``rows`` pivots are chosen by the QR rule; the others are exact combinations of them
+and follow in their original order with r = 0. ``MarkerRanking.n_ranked`` says how many pivots
+were ranked (also fewer when ``k_max`` limits the ranking), and a warning is logged.
+
+Bad input raises :class:`facemotion.errors.InputError`: NaN or inf in A, and a static marker (a
+column whose largest absolute value is below 1e-12 mm: it has no motion to rank, and its r_kk
+would be exactly zero).
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -70,8 +85,11 @@ GRAM_RATIO_LIMIT = 1e-4
 STATIC_MM = 1e-12
 #: Rows per block of the streaming TSQR pass (a multiple of 3: whole frames).
 CHUNK_ROWS = 3 * 4096
+#: Auto route: the randomized selection from this many markers on (when k_max is set).
+RANDOMIZED_MIN_N = 2000
 _EPS = np.finfo(float).eps
-METHODS = ("auto", "gram", "tsqr", "scipy")
+METHODS = ("auto", "gram", "tsqr", "scipy", "randomized")
+log = logging.getLogger("facemotion")
 #: Readings of "R values normalized to the size of R" (Fig. 2); see the module notes.
 R_NORMALISATIONS = ("none", "per_coordinate", "per_frame")
 DEFAULT_R_NORMALISATION = "none"
@@ -112,8 +130,11 @@ class MarkerRanking:
         ranked before it.
     rows: number of rows of A (3 x frames).
     labels: marker labels in the original column order.
-    method: the route actually used ("gram", "tsqr" or "scipy").
+    method: the route actually used ("gram", "tsqr", "scipy" or "randomized").
     rtol: relative tolerance on r_kk / r_11 below which a pivot counts as numerically zero.
+    n_ranked: pivots chosen by the QR rule: min(rows, n, k_max). Later ones follow in their
+        original order (fewer rows than markers: r = 0, exact combinations of the ranked) or,
+        beyond k_max, by decreasing residual (r = NaN, rows of R not computed).
     """
 
     order: np.ndarray
@@ -125,6 +146,11 @@ class MarkerRanking:
     labels: list[str]
     method: str
     rtol: float
+    n_ranked: int | None = None
+
+    def __post_init__(self):
+        if self.n_ranked is None:
+            object.__setattr__(self, "n_ranked", len(self.labels))
 
     @property
     def n(self) -> int:
@@ -138,11 +164,19 @@ class MarkerRanking:
         """Number of pivots with r_kk > rtol * r_11 (R11 of that size is safely invertible)."""
         if self.r.size == 0 or self.r[0] == 0:
             return 0
-        return int(np.count_nonzero(self.r > self.rtol * self.r[0]))
+        return int(np.count_nonzero(self.r[: self.n_ranked] > self.rtol * self.r[0]))
+
+
+def _is_blocks(A) -> bool:
+    """A on disk, read in blocks (:class:`facemotion.displacement_file.RowBlocks`)."""
+    return hasattr(A, "blocks") and hasattr(A, "shape") and not isinstance(A, np.ndarray)
 
 
 def _unpack(A, labels):
-    """Accept a plain array + labels, or a Displacements-like object with .A and .labels."""
+    """Accept a plain array + labels, or a Displacements-like object with .A and .labels,
+    or a RowBlocks (kept on disk)."""
+    if _is_blocks(A):
+        return A, [str(x) for x in (A.labels if labels is None else labels)]
     if labels is None and hasattr(A, "A") and hasattr(A, "labels"):
         return np.asarray(A.A, dtype=float), [str(x) for x in A.labels]
     if labels is None:
@@ -151,8 +185,11 @@ def _unpack(A, labels):
 
 
 def check_displacements(A: np.ndarray, labels: Sequence[str], *, name: str = "A") -> None:
-    """Shape checks shared by every route: 2-D, one label per column, 3F >= n rows."""
-    if A.ndim != 2:
+    """Shape checks shared by every route: 2-D, one label per column, whole frames.
+
+    Fewer rows than markers is allowed: the ranking stops at the row count (module docstring).
+    """
+    if len(A.shape) != 2:
         raise InputError(f"{name}: displacement matrix must be 2-D (3F x n), got shape {A.shape}")
     rows, n = A.shape
     if len(labels) != n:
@@ -164,15 +201,17 @@ def check_displacements(A: np.ndarray, labels: Sequence[str], *, name: str = "A"
         raise InputError(f"{name}: no marker columns")
     if rows % 3:
         raise InputError(f"{name}: {rows} rows is not a multiple of 3 (x, y, z per frame)")
-    if rows < n:
-        raise InputError(
-            f"{name}: {rows // 3} frames ({rows} rows) for {n} markers: fewer rows than markers "
-            "makes A rank deficient by construction; use more frames"
-        )
+    if rows == 0:
+        raise InputError(f"{name}: no frames")
 
 
 def nonfinite_markers(A: np.ndarray, labels: Sequence[str]) -> list[str]:
-    bad = ~np.isfinite(A).all(axis=0)
+    if _is_blocks(A):
+        bad = np.zeros(A.shape[1], dtype=bool)
+        for blk in A.blocks():
+            bad |= ~np.isfinite(blk).all(axis=0)
+    else:
+        bad = ~np.isfinite(A).all(axis=0)
     return [labels[j] for j in np.flatnonzero(bad)]
 
 
@@ -190,7 +229,11 @@ def _check_column_norms(A, labels, sq_norms, name="A"):
     if not np.all(np.isfinite(sq_norms)):
         _raise_nonfinite(A, labels, name)
     suspects = np.flatnonzero(np.sqrt(sq_norms) < np.sqrt(A.shape[0]) * STATIC_MM)
-    static = [labels[j] for j in suspects if np.max(np.abs(A[:, j])) < STATIC_MM]
+    if suspects.size:
+        cols = A.columns(suspects) if _is_blocks(A) else A[:, suspects]
+        peak = np.max(np.abs(cols), axis=0)
+    static = [labels[j] for j, p in zip(suspects, peak if suspects.size else [], strict=True)
+              if p < STATIC_MM]
     if static:
         raise InputError(
             f"{name}: marker(s) {', '.join(static)} never move (max |displacement| < "
@@ -216,10 +259,15 @@ def update_r(R0: np.ndarray | None, A_block: np.ndarray) -> np.ndarray:
 
 
 def tsqr_r(A: np.ndarray, chunk_rows: int = CHUNK_ROWS) -> np.ndarray:
-    """n x n R0 with A = Q0 R0 by streaming TSQR over row blocks (one pass over A)."""
+    """n x n R0 with A = Q0 R0 by streaming TSQR over row blocks (one pass over A; A may be
+    a RowBlocks on disk)."""
     R0 = None
-    for start in range(0, A.shape[0], chunk_rows):
-        R0 = update_r(R0, A[start : start + chunk_rows])
+    if _is_blocks(A):
+        for blk in A.blocks(max(chunk_rows, 3 * ((A.shape[1] + 2) // 3))):
+            R0 = update_r(R0, blk)
+    else:
+        for start in range(0, A.shape[0], chunk_rows):
+            R0 = update_r(R0, A[start : start + chunk_rows])
     n = A.shape[1]
     if R0.shape[0] < n:  # fewer rows than columns: pad with zero rows
         R0 = np.vstack([R0, np.zeros((n - R0.shape[0], n))])
@@ -282,11 +330,24 @@ def _complete_order(piv: np.ndarray, n: int) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 
 
-def _ranking(R, order, A_rows, labels, method, rtol):
-    R = np.triu(np.asarray(R, dtype=float))
-    signs = np.where(np.diag(R) < 0, -1.0, 1.0)
-    R = R * signs[:, None]  # fix the sign of each row: diag(R) >= 0
+def _ranking(R, order, A_rows, labels, method, rtol, n_ranked=None, tail="zero"):
+    """MarkerRanking from R (n x n or n_ranked x n, pivot order) and the pivot order.
+
+    Only the first n_ranked pivots are ranked; the other rows of R are set to zero and their
+    r to 0 (tail="zero": fewer rows than markers, they are exact combinations of the ranked)
+    or NaN (tail="nan": not computed, beyond k_max).
+    """
+    n = len(labels)
+    m = n if n_ranked is None else int(n_ranked)
+    R = np.asarray(R, dtype=float)
+    full = np.zeros((n, n))
+    full[:m] = np.triu(R[:m, :n]) if R.shape[0] >= m else np.triu(np.vstack(
+        [R[:, :n], np.zeros((m - R.shape[0], n))]))
+    signs = np.where(np.diag(full) < 0, -1.0, 1.0)
+    R = full * signs[:, None]  # fix the sign of each row: diag(R) >= 0
     r = np.abs(np.diag(R)).copy()
+    if m < n and tail == "nan":
+        r[m:] = np.nan
     order = np.asarray(order, dtype=np.intp)
     return MarkerRanking(
         order=order,
@@ -298,55 +359,110 @@ def _ranking(R, order, A_rows, labels, method, rtol):
         labels=list(labels),
         method=method,
         rtol=rtol,
+        n_ranked=m,
     )
 
 
-def rank_from_r0(R0: np.ndarray, rows: int, labels: Sequence[str]) -> MarkerRanking:
+def _rest_in_original_order(order: np.ndarray, m: int, n: int | None = None) -> np.ndarray:
+    """The first m pivots, then the other of the n columns in their original order."""
+    head = np.asarray(order[:m], dtype=np.intp)
+    n = len(order) if n is None else n
+    return np.concatenate([head, np.setdiff1d(np.arange(n), head)]).astype(np.intp)
+
+
+def _n_ranked(rows: int, n: int, k_max: int | None) -> int:
+    return min(rows, n, n if k_max is None else int(k_max))
+
+
+def rank_from_r0(R0: np.ndarray, rows: int, labels: Sequence[str],
+                 k_max: int | None = None) -> MarkerRanking:
     """Pivoted QR (dgeqp3) of an n x n factor R0 with A^T A = R0^T R0 (e.g. from TSQR)."""
     R, order = scipy.linalg.qr(R0, mode="r", pivoting=True, check_finite=False)
     n = R0.shape[1]
-    return _ranking(R[:n], order, rows, labels, "tsqr", max(rows, n) * _EPS)
+    m = _n_ranked(rows, n, k_max)
+    if m < n:  # R's rows beyond m refer to the old order: recompute R[:m] for the new one
+        order = _rest_in_original_order(order, m)
+        R = scipy.linalg.qr(R0[:, order], mode="r", check_finite=False)[0]
+    return _ranking(R[:n], order, rows, labels, "tsqr", max(rows, n) * _EPS, m,
+                    "zero" if m == min(rows, n) else "nan")
 
 
-def rank_from_gram(G: np.ndarray, rows: int, labels: Sequence[str]) -> MarkerRanking:
-    """Pivoted Cholesky of G = A^T A: G_PP = R^T R."""
+def rank_from_gram(G: np.ndarray, rows: int, labels: Sequence[str],
+                   k_max: int | None = None) -> MarkerRanking:
+    """Pivoted Cholesky of G = A^T A: G_PP = R^T R (the first min(rows, n, k_max) pivots)."""
     n = G.shape[0]
+    m = _n_ranked(rows, n, k_max)
     # LAPACK's pivoted Cholesky (dpstrf: the pivot is the largest remaining Schur-complement
     # diagonal, i.e. the largest orthogonal residual, as in QR with column pivoting); it stops
     # at a numerically rank-deficient G, where our own implementation completes the order.
-    U, piv, rank, info = scipy.linalg.lapack.dpstrf(G, lower=0)
-    if info == 0 and rank == n:
-        order = piv - 1
-        return _ranking(np.triu(U), order, rows, labels, "gram", np.sqrt(n * _EPS))
-    piv, Rr = pivoted_cholesky(G)
-    order = _complete_order(piv, n)
+    if m == n:
+        U, piv, rank, info = scipy.linalg.lapack.dpstrf(G, lower=0)
+        if info == 0 and rank == n:
+            order = piv - 1
+            return _ranking(np.triu(U), order, rows, labels, "gram", np.sqrt(n * _EPS))
+    piv, Rr = pivoted_cholesky(G, m)
+    order = _complete_order(piv, n) if m == n else _rest_in_original_order(piv, m, n)
     # Gram accuracy: r_kk below ~sqrt(n eps) r_11 is noise
-    return _ranking(Rr[:, order], order, rows, labels, "gram", np.sqrt(n * _EPS))
+    return _ranking(Rr[:, order], order, rows, labels, "gram", np.sqrt(n * _EPS), m,
+                    "zero" if m == min(rows, n) else "nan")
 
 
-def rank_markers(A, labels: Sequence[str] | None = None, method: str = "auto") -> MarkerRanking:
-    """Rank markers by QR with column pivoting of A (3F x n, mm).  See the module docstring."""
+def rank_markers(A, labels: Sequence[str] | None = None, method: str = "auto", *,
+                 k_max: int | None = None, threads: int | None = None,
+                 seed: int = 0) -> MarkerRanking:
+    """Rank markers by QR with column pivoting of A (3F x n, mm).  See the module docstring.
+
+    k_max: rank only the first k_max pivots (default: all); threads: cores for the passes over
+    A (default: what the caller allows, :func:`facemotion.gram.blas_threads`); seed: the
+    randomized route's sketch.
+    """
     A, labels = _unpack(A, labels)
     if method not in METHODS:
         raise InputError(f"method: unknown ranking method {method!r}; use one of {METHODS}")
     check_displacements(A, labels)
     rows, n = A.shape
+    if k_max is not None and (isinstance(k_max, bool) or not isinstance(k_max, int | np.integer)
+                              or k_max < 1):
+        raise InputError(f"k_max: must be a positive integer, got {k_max!r}")
+    m = _n_ranked(rows, n, k_max)
+    if rows < n:
+        log.warning("A has %d rows (%d frames) for %d markers: ranking the first %d pivots; "
+                    "the other %d markers are exact combinations of them (r = 0, listed in "
+                    "their original order)", rows, rows // 3, n, min(rows, n), n - rows)
+    if method == "auto" and k_max is not None and n >= RANDOMIZED_MIN_N and m < n:
+        method = "randomized"
+        log.info("ranking route: randomized (n = %d markers >= %d, k_max = %d)", n,
+                 RANDOMIZED_MIN_N, m)
+    if method == "randomized":
+        from facemotion.randomized_selection import rank_randomized
+
+        if k_max is None:
+            raise InputError("k_max: the randomized ranking needs k_max (pivots to choose)")
+        return rank_randomized(A, labels, m, threads=threads, seed=seed)
     if method == "scipy":
+        if _is_blocks(A):
+            A = A.read()
         if not np.isfinite(A).all():
             _raise_nonfinite(A, labels)
         _check_column_norms(A, labels, np.einsum("ij,ij->j", A, A))
         R, order = scipy.linalg.qr(A, mode="r", pivoting=True, check_finite=False)
-        return _ranking(R[:n], order, rows, labels, "scipy", max(rows, n) * _EPS)
+        if m < n:
+            order = _rest_in_original_order(order, m)
+            R = scipy.linalg.qr(A[:, order], mode="r", check_finite=False)[0]
+        return _ranking(R[:n], order, rows, labels, "scipy", max(rows, n) * _EPS, m,
+                        "zero" if m == min(rows, n) else "nan")
     if method in ("gram", "auto"):
-        G = A.T @ A  # one pass (syrk)
+        from facemotion.gram import gram
+
+        G = gram(A, threads=threads)  # one pass (blocked syrk)
         _check_column_norms(A, labels, np.diag(G).copy())
-        ranking = rank_from_gram(G, rows, labels)
-        if method == "gram" or ranking.r[-1] >= GRAM_RATIO_LIMIT * ranking.r[0]:
+        ranking = rank_from_gram(G, rows, labels, k_max)
+        if method == "gram" or ranking.r[m - 1] >= GRAM_RATIO_LIMIT * ranking.r[0]:
             return ranking
     R0 = tsqr_r(A)
     if method == "tsqr":
         _check_column_norms(A, labels, np.einsum("ij,ij->j", R0, R0))
-    return rank_from_r0(R0, rows, labels)
+    return rank_from_r0(R0, rows, labels, k_max)
 
 
 def spectral_norm(M: np.ndarray) -> float:
@@ -404,6 +520,9 @@ def epsilon_rank(ranking: MarkerRanking, tolerances_mm,
     bad = tols[~(np.isfinite(tols) & (tols > 0))]
     if bad.size:
         raise InputError(f"tolerances_mm: tolerances must be positive finite mm, got {bad[0]!r}")
+    if np.isnan(ranking.r).any():
+        raise InputError(f"epsilon-rank: the ranking stops at k_max = {ranking.n_ranked} "
+                         "pivots, so ||R22||_2 is not known; rank without k_max")
     r = ranking.normalised_r(normalisation)
     out = []
     for tol in tols:

@@ -143,18 +143,30 @@ def _zero_row(n: int, lab: list[str]) -> dict:
     }
 
 
-def error_curve(train_ranking: MarkerRanking, B, labels: Sequence[str]) -> pd.DataFrame:
-    """Held-out prediction error for every k = 1..rank (and k = n, zero error), one pass.
+def _k_stop(rk: MarkerRanking, k_max) -> int:
+    """Last k of a curve: the numerical rank (R11 must be invertible), n - 1, and k_max."""
+    stop = min(rk.numerical_rank(), rk.n - 1)
+    if k_max is not None:
+        if isinstance(k_max, bool) or not isinstance(k_max, int | np.integer) or k_max < 1:
+            raise InputError(f"k_max: must be a positive integer, got {k_max!r}")
+        stop = min(stop, int(k_max))
+    return stop
 
-    k stops at the numerical rank of the training data (R11 must be invertible); k = n is
-    always reported (every marker main: zero error).  Columns: see the module docstring.
+
+def error_curve(train_ranking: MarkerRanking, B, labels: Sequence[str],
+                k_max: int | None = None) -> pd.DataFrame:
+    """Held-out prediction error for every k = 1..min(rank, k_max) (and k = n, zero error).
+
+    k stops at the numerical rank of the training data (R11 must be invertible) and at
+    ``k_max`` (cost O(rows n k_max)); k = n is always reported (every marker main: zero
+    error).  Columns: see the module docstring.
     """
     rk = train_ranking
     Bp = _align(rk, B, labels)
     F = Bp.shape[0] // 3
     n = rk.n
     lab = rk.labels_in_order
-    rank = min(rk.numerical_rank(), n - 1)
+    rank = _k_stop(rk, k_max)
     R = rk.R
     # C[:, :rank] = B_P[:, :rank] R11^-1   (solve R11^T C^T = B_P^T)
     C = scipy.linalg.solve_triangular(R[:rank, :rank], Bp[:, :rank].T, trans="T").T
@@ -170,7 +182,8 @@ def error_curve(train_ranking: MarkerRanking, B, labels: Sequence[str]) -> pd.Da
     return pd.DataFrame(out, columns=CURVE_COLUMNS)
 
 
-def error_curve_rms(train_ranking: MarkerRanking, B, labels: Sequence[str]) -> pd.DataFrame:
+def error_curve_rms(train_ranking: MarkerRanking, B, labels: Sequence[str],
+                    k_max: int | None = None) -> pd.DataFrame:
     """RMS-only held-out error for every k from Gram matrices of B (frame count drops out).
 
     With G = B_P^T B_P (one pass over B) and X = R11^-1 R12,
@@ -179,14 +192,14 @@ def error_curve_rms(train_ranking: MarkerRanking, B, labels: Sequence[str]) -> p
 
     O(n^3) per k, independent of the number of held-out frames.  It subtracts large numbers, so
     its absolute error is about eps * ||B_s||_F^2: negligible unless the error is ~1e-7 of the
-    motion.  Columns: k, rms_error_mm, main_markers.
+    motion.  k stops at min(rank, k_max).  Columns: k, rms_error_mm, main_markers.
     """
     rk = train_ranking
     Bp = _align(rk, B, labels)
     rows = Bp.shape[0]
     n = rk.n
     lab = rk.labels_in_order
-    rank = min(rk.numerical_rank(), n - 1)
+    rank = _k_stop(rk, k_max)
     G = Bp.T @ Bp
     R = rk.R
     out = []
