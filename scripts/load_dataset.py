@@ -21,7 +21,8 @@ def main(sm, log, prov):
         exclude_markers=ds["exclude_markers"], include_markers=ds["include_markers"],
         train=[i - 1 for i in ds["train"]], heldout=[i - 1 for i in ds["heldout"]],
         max_interp_s=sm.params.gaps["max_interp_s"], long_gaps=sm.params.gaps["long_gaps"],
-        neutral=sm.params.neutral, limits=limits)
+        neutral=sm.params.neutral, limits=limits, sentences=ds["segments"],
+        subject_prefix=ds["subject_prefix"])
     prov.inputs = list(prov.inputs) + [r for r in recordings]
     d = loaded.displacements
     log.info("A: %d rows x %d markers from %d sentences", *d.A.shape, len(d.sentences))

@@ -21,6 +21,7 @@ from facemotion.displacements import (
 from facemotion.errors import InputError
 from facemotion.gaps import fill_gaps
 from facemotion.head_motion import align_head
+from facemotion.input.segments import Segment, cut
 from facemotion.readers import read_recording
 from facemotion.validation import Limits, check_take
 
@@ -61,21 +62,37 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                  head_markers: list[str] = (), exclude_markers: list[str] = (),
                  include_markers: list[str] = (), train: list[int], heldout: list[int],
                  max_interp_s: float = 0.1, long_gaps: str = "pca",
-                 neutral: str = "first_frame", limits: Limits | None = None) -> LoadedDataset:
-    """Load the sentences ``train + heldout`` (0-based indices into ``recordings``).
+                 neutral: str = "first_frame", limits: Limits | None = None,
+                 sentences: list | None = None,
+                 subject_prefix: str | None = None) -> LoadedDataset:
+    """Load the sentences ``train + heldout`` (0-based indices into the sentences).
 
-    The dataset's sentences are ordered training sentences first, then held-out ones. Every
-    take is checked (:func:`facemotion.validation.check_take`, with ``limits``) on the markers
-    the analysis uses (the analysed and the head markers) before head motion is removed.
+    The sentences are ``recordings`` (one file each) or, when given, ``sentences``: intervals
+    of the takes (:class:`~facemotion.input.segments.Segment` or its ``to_param`` dict), each
+    take read once and cut. The dataset's sentences are ordered training sentences first,
+    then held-out ones. Every sentence is checked (:func:`facemotion.validation.check_take`,
+    with ``limits``) on the markers the analysis uses (the analysed and the head markers)
+    before head motion is removed.
     """
     limits = limits or Limits()
+    items = [Segment.from_param(s) for s in (sentences if sentences is not None
+                                              else recordings)]
     order = list(train) + list(heldout)
-    paths = [recordings[i] for i in order]
+    chosen = [items[i] for i in order]
+    paths = [s.take for s in chosen]
     roles = ["train"] * len(train) + ["heldout"] * len(heldout)
+    takes: dict[str, object] = {}
     recs = []
-    for i, p in enumerate(paths):
-        log.info("reading %s (%d/%d)", p, i + 1, len(paths))
-        recs.append(read_recording(p, fmt, units=units))
+    for i, seg in enumerate(chosen):
+        if seg.take not in takes:
+            log.info("reading %s (%d/%d)", seg.take, len(takes) + 1, len(dict.fromkeys(paths)))
+            takes[seg.take] = read_recording(seg.take, fmt, units=units,
+                                             subject_prefix=subject_prefix)
+        recs.append(cut(takes[seg.take], seg))
+        if not seg.whole:
+            log.info("sentence %d/%d %r: %s, %.4f-%.4f s, %d frames", i + 1, len(chosen),
+                     seg.name, seg.take, seg.start_s, seg.end_s, recs[-1].n_frames)
+    takes.clear()
     for rec in recs[1:]:
         check_same_take_layout(rec, recs[0])
     labels = recs[0].labels
@@ -132,7 +149,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         f, rep = fill_gaps(r, max_interp_s=max_interp_s, long_gaps=long_gaps)
         filled_recs.append(f)
         reports.append(rep)
-    names = [Path(p).stem for p in paths]
+    names = [s.name for s in chosen]
     disp = build_displacements(filled_recs, names, neutral=neutral, head_residuals=residuals)
     cols = [used.index(m) for m in keep]
     gap_report = _aggregate_gap_reports(reports)
@@ -141,6 +158,9 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     sentences = pd.DataFrame({
         "sentence": names,
         "file": [str(p) for p in paths],
+        "start_s": [0.0 if s.whole else float(s.start_s) for s in chosen],
+        "end_s": [r.n_frames / r.rate if s.whole else float(s.end_s)
+                  for s, r in zip(chosen, recs, strict=True)],
         "role": roles,
         "frames": [r.n_frames for r in recs],
         "duration_s": [r.n_frames / r.rate for r in recs],

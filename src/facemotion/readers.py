@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import logging
 import math
 import os
 import struct
@@ -35,7 +36,7 @@ import numpy as np
 from facemotion.errors import InputError, token
 from facemotion.recording import Recording
 
-FORMATS = ("c3d", "trc", "csv")
+FORMATS = ("c3d", "trc", "csv", "qualisys_tsv", "optitrack_csv", "openface_csv")
 
 # Millimetres per unit, with the spellings found in C3D/TRC files.
 _MM_PER_UNIT = {
@@ -54,24 +55,49 @@ def unit_scale(unit: str, where: str) -> float:
     return _MM_PER_UNIT[key]
 
 
-def read_recording(path, fmt: str, units: str | None = None) -> Recording:
-    """Read one take in format ``fmt`` ("c3d", "trc" or "csv").
+def read_recording(path, fmt: str, units: str | None = None,
+                   subject_prefix: str | None = None) -> Recording:
+    """Read one take in format ``fmt`` (one of FORMATS).
 
-    ``units`` (the subject sheet's) applies only when the file does not state its own.
+    ``units`` (the subject sheet's) applies only when the file does not state its own. Labels
+    "Subject:Marker" lose their prefix; a file with several subjects needs ``subject_prefix``
+    (see :mod:`facemotion.input.prefixes`).
     """
+    from facemotion.input.prefixes import select_subject
+
     fmt_key = str(fmt).strip().lower()
-    readers = {"c3d": read_c3d, "trc": read_trc, "csv": read_csv}
+    readers = _readers()
     if fmt_key not in readers:
         raise InputError(f"{path}: unknown format {fmt!r} (supported: {', '.join(FORMATS)})")
-    return readers[fmt_key](path, units=units)
+    return select_subject(readers[fmt_key](path, units=units), subject_prefix)
 
 
-def read_labels(path, fmt: str) -> list[str]:
+def _readers() -> dict:
+    """The reader of each of FORMATS (the vendor exports' readers live in facemotion.input)."""
+    from facemotion.input.openface import read_openface_csv
+    from facemotion.input.optitrack import read_optitrack_csv
+    from facemotion.input.qualisys import read_qualisys_tsv
+
+    return {"c3d": read_c3d, "trc": read_trc, "csv": read_csv,
+            "qualisys_tsv": read_qualisys_tsv, "optitrack_csv": read_optitrack_csv,
+            "openface_csv": read_openface_csv}
+
+
+def read_labels(path, fmt: str, subject_prefix: str | None = None) -> list[str]:
     """The marker labels of a file, reading no more of it than needed (TRC and CSV: the
-    header; C3D: the whole file, with its size check)."""
+    header; C3D and the other exports: the whole file), without a subject prefix."""
+    from facemotion.input.prefixes import subject_columns
+
+    labels = _file_labels(path, fmt)
+    return subject_columns(labels, subject_prefix, str(path))[1]
+
+
+def _file_labels(path, fmt: str) -> list[str]:
     fmt_key = str(fmt).strip().lower()
     if fmt_key == "c3d":
         return read_c3d(path).labels
+    if fmt_key in _readers() and fmt_key not in ("trc", "csv"):
+        return _readers()[fmt_key](path).labels
     p = _check_readable(path)
     try:
         with open(p, encoding="utf-8-sig") as fh:
@@ -255,12 +281,18 @@ def read_c3d(path, units: str | None = None) -> Recording:
 
     Labels come from POINT:LABELS (whitespace stripped), the rate from POINT:RATE and the units
     from POINT:UNITS (``units`` only for a file without them). The file's size is checked
-    against its header first (:func:`check_c3d_size`). A sample is missing (NaN) if its
+    against its header first (:func:`check_c3d_size`). Points that POINT:ANGLES, FORCES,
+    MOMENTS, POWERS, SCALARS, REACTIONS or MODELED_MARKERS list are not markers and are left
+    out, with a log line (:mod:`facemotion.input.c3d_points`). Coordinates are taken at the
+    32-bit precision C3D stores (floats, or 16-bit integers times a 32-bit scale), so the
+    integer and real variants of one trial read identically. A sample is missing (NaN) if its
     residual is negative (C3D's "invalid" flag), if any coordinate is NaN, or if it is exactly
     (0, 0, 0) with a residual that is not positive (the exporters' other way of writing
     "no data").
     """
     import ezc3d
+
+    from facemotion.input.c3d_points import describe_dropped, non_marker_points
 
     p = _check_readable(path)
     check_c3d_size(p)
@@ -281,7 +313,17 @@ def read_c3d(path, units: str | None = None) -> Recording:
     if len(labels) < n:
         raise InputError(f"{p}: POINT:LABELS has {len(labels)} labels for {n} points")
     labels = labels[:n]
-    empty = [i for i, lab in enumerate(labels) if not lab]
+    not_markers = non_marker_points(point, labels)
+    if not_markers:
+        logging.getLogger("facemotion").info(
+            "%s: left out %d points that are not markers (%s)", p, len(not_markers),
+            describe_dropped(not_markers))
+    kept = [i for i, lab in enumerate(labels) if lab not in not_markers]
+    if not kept:
+        raise InputError(f"{p}: no marker points (all {n} points are "
+                         f"{', '.join(sorted(set(not_markers.values())))})")
+    labels = [labels[i] for i in kept]
+    empty = [kept[i] for i, lab in enumerate(labels) if not lab]
     if empty:
         raise InputError(f"{p}: point(s) {empty[:5]} have an empty label in POINT:LABELS")
     rate_v = np.ravel(point["RATE"]["value"]) if "RATE" in point else np.array([])
@@ -295,10 +337,11 @@ def read_c3d(path, units: str | None = None) -> Recording:
     else:
         raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
     scale = unit_scale(used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
-    xyz = data[:3].transpose(2, 1, 0) * scale  # (frames, markers, 3)
+    # (frames, markers, 3); float32 first: the precision the file stores (see the docstring)
+    xyz = data[:3, kept].astype(np.float32).astype(float).transpose(2, 1, 0) * scale
     meta = c["data"].get("meta_points", {})
     if "residuals" in meta and np.size(meta["residuals"]):
-        residual = np.asarray(meta["residuals"], dtype=float)[0].T  # (frames, markers)
+        residual = np.asarray(meta["residuals"], dtype=float)[0, kept].T  # (frames, markers)
     else:
         residual = np.zeros(xyz.shape[:2])
     invalid = (residual < 0) | ~np.isfinite(xyz).all(axis=2)

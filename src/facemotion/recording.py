@@ -31,7 +31,8 @@ class Recording:
 
     def __post_init__(self) -> None:
         self.labels = [str(label) for label in self.labels]
-        self.points = np.asarray(self.points, dtype=float)
+        # C order always: the same samples give the same sums whichever reader made them
+        self.points = np.ascontiguousarray(self.points, dtype=float)
         if self.points.ndim != 3 or self.points.shape[2] != 3:
             raise InputError(f"{self.source or 'recording'}: points must be (frames, markers, 3), "
                              f"got shape {self.points.shape}")
@@ -47,7 +48,7 @@ class Recording:
         if self.filled is None:
             self.filled = np.zeros(self.points.shape[:2], dtype=bool)
         else:
-            self.filled = np.asarray(self.filled, dtype=bool)
+            self.filled = np.ascontiguousarray(self.filled, dtype=bool)
             if self.filled.shape != self.points.shape[:2]:
                 raise InputError(f"{self.source or 'recording'}: fill mask shape "
                                  f"{self.filled.shape} != {self.points.shape[:2]}")

@@ -1,6 +1,7 @@
 """The subject sheet (the user's interface to their data) and the datasets built on it.
 
-A subject is one talker: a set of recordings (one file per sentence or take), their format,
+A subject is one talker: a set of recordings (one file per sentence, or long takes cut into
+sentences by the ``segments`` column, see :mod:`facemotion.input.segments`), their format,
 which markers move rigidly with the head and which to leave out. A dataset is the unit of
 analysis: a subject plus which of its sentences train the model and which are held out.
 """
@@ -16,12 +17,13 @@ from pathlib import Path
 import pandas as pd
 
 from facemotion.errors import InputError
+from facemotion.input.segments import Segment, segment_subject
 
-FORMATS = ("c3d", "trc", "csv")
+FORMATS = ("c3d", "trc", "csv", "qualisys_tsv", "optitrack_csv", "openface_csv")
 UNITS = ("mm", "cm", "m", "in")
 SHEET_COLUMNS = ("subject", "recordings", "format", "head_markers", "exclude_markers")
 OPTIONAL_COLUMNS = ("units", "include_markers", "simulate", "seed", "talker_seed",
-                    "n_sentences", "sentence_duration")
+                    "n_sentences", "sentence_duration", "segments", "subject_prefix")
 DESIGN_SENTENCES = {"S1": 40, "S2a": 50, "S2b": 50}
 DEFAULT_HELDOUT_FRACTION = 0.25
 _ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
@@ -53,10 +55,20 @@ class Subject:
     talker_seed: int | None = None
     n_sentences: int | None = None
     sentence_duration: tuple[float, float] | None = None
+    segments: list[Segment] | None = None   # sentences cut from the takes; None = whole takes
+    segment_sources: list[str] = field(default_factory=list)  # TextGrids / tables read
+    subject_prefix: str | None = None
+
+    @property
+    def sentences(self) -> list[Segment]:
+        """The subject's sentences: intervals of its takes, or its whole takes."""
+        if self.segments is not None:
+            return self.segments
+        return [Segment(Path(p).stem, p) for p in self.recordings]
 
     @property
     def sentence_names(self) -> list[str]:
-        return [Path(p).stem for p in self.recordings]
+        return [s.name for s in self.sentences]
 
 
 @dataclass
@@ -190,8 +202,18 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
                 raise InputError(f"{where}: recordings {pattern!r} of subject {sid!r} match "
                                  f"{dirs[0]}, which is not a file")
             recordings = [str(Path(p)) for p in recordings]
+        prefix = _cell(row, "subject_prefix")
+        segments, sources = None, []
+        if _cell(row, "segments") is not None:
+            if design is not None:
+                raise InputError(f"{where}: simulated subject {sid!r} has one file per "
+                                 "sentence; leave its segments cell empty")
+            segments, sources = segment_subject(
+                _cell(row, "segments"), recordings, fmt, path.parent,
+                f"{where} (subject {sid!r})", shared_data=shared_data, subject_prefix=prefix)
         subjects[sid] = Subject(
-            id=sid, recordings=recordings, format=fmt,
+            id=sid, recordings=recordings, format=fmt, segments=segments,
+            segment_sources=sources, subject_prefix=prefix,
             head_markers=_labels_cell(row, "head_markers", where, sid),
             exclude_markers=_labels_cell(row, "exclude_markers", where, sid),
             include_markers=_labels_cell(row, "include_markers", where, sid),
@@ -278,7 +300,7 @@ def resolve_datasets(subjects: dict[str, Subject], datasets_cfg: dict | None,
 
     if default_per_subject:
         for sid, subj in subjects.items():
-            train, held = default_split(len(subj.recordings))
+            train, held = default_split(len(subj.sentences))
             out[sid] = Dataset(sid, sid, sid, train, held)
     for did, spec in (datasets_cfg or {}).items():
         setting = f"datasets.{did}"
@@ -289,7 +311,7 @@ def resolve_datasets(subjects: dict[str, Subject], datasets_cfg: dict | None,
         if sid not in subjects:
             raise InputError(f"setting {setting}.subject: unknown subject {sid!r} "
                              f"(sheet has {', '.join(subjects)})")
-        n = len(subjects[sid].recordings)
+        n = len(subjects[sid].sentences)
         if "train" in spec:
             train = parse_sentences(spec["train"], n, f"{setting}.train")
         else:

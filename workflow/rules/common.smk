@@ -100,6 +100,10 @@ def dataset_params(dataset):
         "train": [i + 1 for i in ds.train],
         "heldout": [i + 1 for i in ds.heldout],
         "sentence_names": subj.sentence_names,
+        "subject_prefix": subj.subject_prefix,
+        "segments": (
+            None if subj.segments is None else [s.to_param() for s in subj.segments]
+        ),
     }
 
 
@@ -152,7 +156,7 @@ def load_inputs(wildcards):
     subj = SUBJECTS[DATASETS[wildcards.dataset].subject]
     if subj.simulate:
         return [f"results/virtual/{subj.id}"]
-    return subj.recordings
+    return subj.recordings + subj.segment_sources
 
 
 def lip_params(wildcards):
@@ -236,7 +240,9 @@ def _file_labels(subj):
     """A subject's marker labels, known at parse time (reads one file's header)."""
     if subj.simulate:
         return marker_layout(design=subj.simulate)[0]
-    return read_labels(subj.recordings[0], subj.format)
+    return read_labels(
+        subj.recordings[0], subj.format, subject_prefix=subj.subject_prefix
+    )
 
 
 def _lip_frames(ls, spec):
