@@ -7,8 +7,8 @@ Layout (OpenFace wiki, "Output Format"): one row per video frame with columns ``
 
 The 3-D landmarks are read as markers ``L0 .. L67`` (OpenFace's landmark numbers), in mm. A
 frame with ``success`` 0 (no face tracked) is a missing sample of every landmark. The rate is
-1 / the mean step of ``timestamp``, which must be uniform (no timestamp further than a quarter
-step from the uniform grid; a skipped frame is an error). Camera coordinates include the
+1 / the step of ``timestamp`` (least-squares slope, rounded to 0.01 Hz), which must be uniform
+(no timestamp further than a quarter step from the fitted grid; a skipped frame is an error). Camera coordinates include the
 motion of the head: give head landmarks in the sheet (e.g. the nose bridge L27-L30 and the
 eye corners L36, L39, L42, L45).
 """
@@ -84,13 +84,16 @@ def read_openface_csv(path, units: str | None = None) -> Recording:
         raise InputError(f"{p}: need at least 2 frames to get the rate from 'timestamp'")
     if not np.isfinite(t).all():
         raise InputError(f"{p}: column 'timestamp' has non-finite values")
-    step = (t[-1] - t[0]) / (t.size - 1)
-    off = np.abs(t - (t[0] + step * np.arange(t.size)))
+    # the step is the least-squares slope of timestamp on frame index (OpenFace writes
+    # timestamps to the millisecond; the slope averages that rounding away)
+    index = np.arange(t.size)
+    step, origin = np.polyfit(index, t, 1)
+    off = np.abs(t - (origin + step * index))
     if step <= 0 or off.max() > 0.25 * step:
         k = int(np.argmax(off))
         raise InputError(f"{p}: timestamps are not uniformly sampled (line {k + 2} is "
                          f"{off[k]:.4g} s off the grid of step {step:.6g} s; a dropped frame?)")
-    rate = round(1.0 / step, 3)
+    rate = round(1.0 / step, 2)
     xyz = np.stack([np.stack([numeric(f"{a}_{k}") for a in "XYZ"], axis=1) for k in range(n)],
                    axis=1)  # (frames, landmarks, 3)
     xyz[success == 0] = np.nan
