@@ -8,9 +8,9 @@ Layout (OpenFace wiki, "Output Format"): one row per video frame with columns ``
 The 3-D landmarks are read as markers ``L0 .. L67`` (OpenFace's landmark numbers), in mm. A
 frame with ``success`` 0 (no face tracked) is a missing sample of every landmark. The rate is
 1 / the step of ``timestamp`` (least-squares slope, rounded to 0.01 Hz), which must be uniform
-(no timestamp further than a quarter step from the fitted grid; a skipped frame is an error). Camera coordinates include the
-motion of the head: give head landmarks in the sheet (e.g. the nose bridge L27-L30 and the
-eye corners L36, L39, L42, L45).
+(no timestamp further than a quarter step from the fitted grid; a skipped frame is an error).
+Camera coordinates include the motion of the head: give head landmarks in the sheet (e.g. the
+nose bridge L27-L30 and the eye corners L36, L39, L42, L45).
 """
 
 from __future__ import annotations
