@@ -116,8 +116,13 @@ def test_subject_chosen_by_prefix(subject, caplog):
 
 
 def test_a_file_ezc3d_cannot_read_stops_with_one_line(tmp_path):
-    """The SGI (MIPS) variant of Sample02: processor byte of the parameter section set to 86."""
+    """Sample02 made SGI (MIPS, big-endian): the header's words in big-endian order and the
+    parameter section's processor byte 83 + 3. ezc3d reads no SGI file."""
     data = bytearray((suite() / "c3dorg_sample02_pc_real.c3d").read_bytes())
+    for a, b in ((2, 4), (4, 6), (6, 8), (8, 10), (10, 12), (16, 18), (18, 20)):
+        data[a:b] = data[a:b][::-1]  # 16-bit words
+    for a, b in ((12, 16), (20, 24)):
+        data[a:b] = data[a:b][::-1]  # 32-bit floats (scale, frame rate)
     data[(data[0] - 1) * 512 + 3] = 83 + 3
     (tmp_path / "sample02_sgi.c3d").write_bytes(bytes(data))
     with pytest.raises(InputError) as err:

@@ -140,7 +140,7 @@ def test_textgrid_errors(tmp_path):
         "marks": [Point(1.0, "x")]})
     seg = "textgrid:{stem}.TextGrid#"
     with pytest.raises(InputError, match=r"row 2.*b1.TextGrid: no tier 'sentence' "
-                                         r"\(tiers: sentences, blank, marks\)"):
+                                         r"\(tiers: 'sentences', 'blank', 'marks'\)"):
         segment_subject(seg + "sentence", [take], "c3d", tmp_path, "row 2")
     with pytest.raises(InputError, match="tier 'blank' has no non-empty interval"):
         segment_subject(seg + "blank", [take], "c3d", tmp_path, "row 2")
@@ -261,7 +261,7 @@ def test_events_of_another_subject_are_ignored(tmp_path):
     ([("End", 0.2), ("Start", 0.5), ("End", 1.0)], r"'End' at 0.2000 s has no 'Start' before"),
     ([("Start", 0.5), ("End", 1.0), ("Start", 1.5)], r"'Start' at 1.5000 s has no 'End' after"),
     ([("Foot Strike", 0.5)], r"no events labelled 'Start' or 'End' .events in the file: "
-                             r"Foot Strike\)"),
+                             r"'Foot Strike'\)"),
 ])
 def test_event_errors(events, match):
     with pytest.raises(InputError, match=match):

@@ -65,13 +65,15 @@ def test_qtm_layouts_read_back_exactly(tmp_path, column_header, frame_time):
     assert np.array_equal(rec.points, pts, equal_nan=True)
 
 
-def test_qtm_zero_samples_are_missing_and_units_override(tmp_path):
+def test_qtm_zero_samples_are_missing_and_units_are_mm(tmp_path):
     labels, pts = planted()
     write_qtm(tmp_path / "take.tsv", labels, pts, missing="0.000")
     rec = read_qualisys_tsv(tmp_path / "take.tsv")
     assert np.array_equal(np.isnan(rec.points), np.isnan(pts))
+    # QTM writes mm: the format's units win over the sheet's
     rec_cm = read_qualisys_tsv(tmp_path / "take.tsv", units="cm")
-    assert np.allclose(rec_cm.points, 10 * pts, equal_nan=True)
+    assert np.array_equal(rec_cm.points, rec.points, equal_nan=True)
+    assert (rec_cm.units, rec_cm.units_source) == ("mm", "file")
 
 
 @pytest.mark.parametrize("overrides, match", [
@@ -179,6 +181,10 @@ def test_motive_units_from_the_header(tmp_path):
     write_motive(tmp_path / "m.csv", labels, pts, units="Meters", per_mm=1000.0)
     rec = read_optitrack_csv(tmp_path / "m.csv")
     assert np.allclose(rec.points, pts, rtol=1e-12, equal_nan=True)
+    assert (rec.units, rec.units_source) == ("m", "file")
+    # the file's Length Units win over the sheet's
+    assert np.array_equal(read_optitrack_csv(tmp_path / "m.csv", units="mm").points,
+                          rec.points, equal_nan=True)
     write_motive(tmp_path / "none.csv", labels, pts, units=None)
     with pytest.raises(InputError, match="line 1 has no Length Units; give the units"):
         read_optitrack_csv(tmp_path / "none.csv")

@@ -19,24 +19,24 @@ import re
 
 import numpy as np
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, token
 from facemotion.recording import Recording
 
 _LANDMARK = re.compile(r"^([XYZ])_(\d+)$")
 
 
 def read_openface_csv(path, units: str | None = None) -> Recording:
-    """Read the 3-D landmarks of an OpenFace 2.x CSV (see the module docstring)."""
+    """Read the 3-D landmarks of an OpenFace 2.x CSV (see the module docstring); always mm."""
     import pandas as pd
 
-    from facemotion.readers import _check_readable, unit_scale
+    from facemotion.readers import _check_readable
 
     p = _check_readable(path)
     try:
         df = pd.read_csv(p, dtype=str, keep_default_na=False, skipinitialspace=True)
     except (OSError, UnicodeDecodeError, pd.errors.ParserError,
             pd.errors.EmptyDataError) as e:
-        raise InputError(f"{p}: cannot read as CSV ({str(e).splitlines()[0][:120]})") from None
+        raise InputError(f"{p}: cannot read as CSV ({str(e).splitlines()[0][:80]})") from None
     df.columns = [str(c).strip() for c in df.columns]
     for col in ("frame", "timestamp", "success"):
         if col not in df.columns:
@@ -67,7 +67,7 @@ def read_openface_csv(path, units: str | None = None) -> Recording:
             return df[col].str.strip().astype(float).to_numpy()
         except ValueError:
             bad = next(k for k, v in enumerate(df[col]) if not _is_float(v))
-            raise InputError(f"{p}: non-numeric value {str(df[col].iloc[bad])[:20]!r} in "
+            raise InputError(f"{p}: non-numeric value {token(df[col].iloc[bad])} in "
                              f"column {col!r} line {bad + 2}") from None
 
     frame, t, success = numeric("frame"), numeric("timestamp"), numeric("success")
@@ -97,8 +97,9 @@ def read_openface_csv(path, units: str | None = None) -> Recording:
     xyz = np.stack([np.stack([numeric(f"{a}_{k}") for a in "XYZ"], axis=1) for k in range(n)],
                    axis=1)  # (frames, landmarks, 3)
     xyz[success == 0] = np.nan
-    scale = unit_scale(units, f"{p} (units setting)") if units is not None else 1.0
-    return Recording([f"L{k}" for k in range(n)], xyz * scale, rate, source=str(p))
+    # OpenFace writes its 3-D landmarks in mm: the format's own units win over the sheet's
+    return Recording([f"L{k}" for k in range(n)], xyz, rate, source=str(p), units="mm",
+                     units_source="file")
 
 
 def _is_float(text) -> bool:

@@ -13,7 +13,7 @@ Only measured markers are read: columns of type ``Marker`` whose quantity is ``P
 Rigid bodies and bones (poses) and rigid-body or bone markers (where Motive expects a marker,
 not where it was seen) are left out with a log line, as are unlabeled markers (``Unlabeled
 1234``), whose identity changes from frame to frame. Units come from ``Length Units``
-(``units`` overrides; a file without it needs ``units``).
+(the sheet's ``units`` only for a file without it).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import re
 
 import numpy as np
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, token
 from facemotion.recording import Recording
 
 log = logging.getLogger("facemotion")
@@ -52,8 +52,8 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
     except (OSError, UnicodeDecodeError, csv.Error) as e:
         raise InputError(f"{p}: cannot read Motive CSV text ({e})") from None
     if not rows or not rows[0] or rows[0][0].strip() != "Format Version":
-        first = rows[0][0][:20] if rows and rows[0] else ""
-        raise InputError(f"{p}: not a Motive CSV export (line 1 starts with {first!r}, not "
+        first = rows[0][0] if rows and rows[0] else ""
+        raise InputError(f"{p}: not a Motive CSV export (line 1 starts with {token(first)}, not "
                          "'Format Version'; export with the header enabled)")
     meta = {rows[0][k].strip(): rows[0][k + 1].strip()
             for k in range(0, len(rows[0]) - 1, 2)}
@@ -110,20 +110,20 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
         rate = float(rate_text)
     except (TypeError, ValueError):
         raise InputError(f"{p}: no numeric Export/Capture Frame Rate in line 1 "
-                         f"(got {rate_text!r})") from None
+                         f"(got {token(rate_text)})") from None
     if not math.isfinite(rate) or rate <= 0:
-        raise InputError(f"{p}: frame rate must be positive, got {rate_text!r}")
-    if units is None:
-        length = meta.get("Length Units")
-        if not length:
-            raise InputError(f"{p}: line 1 has no Length Units; give the units in the sheet")
+        raise InputError(f"{p}: frame rate must be positive, got {token(rate_text)}")
+    length = meta.get("Length Units")
+    if length:
         if length.lower() not in _UNITS:
-            raise InputError(f"{p}: unknown Length Units {length!r} (Meters, Centimeters, "
+            raise InputError(f"{p}: unknown Length Units {token(length)} (Meters, Centimeters, "
                              "Millimeters)")
-        units, what = _UNITS[length.lower()], "Length Units"
+        used, source = _UNITS[length.lower()], "file"
+    elif units is not None:
+        used, source = units, "sheet"
     else:
-        what = "units setting"
-    scale = unit_scale(units, f"{p} ({what})")
+        raise InputError(f"{p}: line 1 has no Length Units; give the units in the subject sheet")
+    scale = unit_scale(used, f"{p} ({'Length Units' if source == 'file' else 'sheet units'})")
     data = [(k + 1, r) for k, r in enumerate(rows[axis_at + 1:], start=axis_at + 1)
             if any(c.strip() for c in r)]
     if not data:
@@ -141,10 +141,10 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
         except ValueError:
             bad = next(j for j in idx if j < len(row) and row[j].strip()
                        and not _is_float(row[j]))
-            raise InputError(f"{p}, line {line_no}: non-numeric value {row[bad][:20]!r} in "
+            raise InputError(f"{p}, line {line_no}: non-numeric value {token(row[bad])} in "
                              f"column {bad + 1}") from None
     xyz = values.reshape(len(data), len(order), 3) * scale
-    return Recording(order, xyz, rate, source=str(p))
+    return Recording(order, xyz, rate, source=str(p), units=used, units_source=source)
 
 
 def _is_float(text: str) -> bool:

@@ -82,4 +82,4 @@ def select_subject(rec: Recording, subject_prefix: str | None = None) -> Recordi
         log.info("%s: all %d labels carry the subject prefix '%s:', which is removed", where,
                  len(keep), wanted)
     return Recording(names, rec.points[:, keep, :].copy(), rec.rate, rec.source,
-                     rec.filled[:, keep].copy())
+                     rec.filled[:, keep].copy(), rec.units, rec.units_source)

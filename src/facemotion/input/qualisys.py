@@ -17,7 +17,7 @@ import re
 
 import numpy as np
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, token
 from facemotion.recording import Recording
 
 _KEY = re.compile(r"^[A-Z][A-Z0-9_]*$")
@@ -32,8 +32,8 @@ def _float(text: str) -> float:
 
 
 def read_qualisys_tsv(path, units: str | None = None) -> Recording:
-    """Read a QTM 3-D TSV export (see the module docstring); ``units`` overrides mm."""
-    from facemotion.readers import _check_readable, unit_scale
+    """Read a QTM 3-D TSV export (see the module docstring); always mm (``units`` unused)."""
+    from facemotion.readers import _check_readable
 
     p = _check_readable(path)
     try:
@@ -65,16 +65,16 @@ def read_qualisys_tsv(path, units: str | None = None) -> Recording:
         n_markers = int(header["NO_OF_MARKERS"][0])
     except ValueError:
         raise InputError(f"{p}: NO_OF_FRAMES/NO_OF_MARKERS not integers "
-                         f"({header['NO_OF_FRAMES'][0][:20]!r}, "
-                         f"{header['NO_OF_MARKERS'][0][:20]!r})") from None
+                         f"({token(header['NO_OF_FRAMES'][0])}, "
+                         f"{token(header['NO_OF_MARKERS'][0])})") from None
     freq = header["FREQUENCY"][0]
     try:
         rate = float(freq)
     except ValueError:
-        raise InputError(f"{p}: FREQUENCY {freq[:20]!r} is not a number (an external timebase "
+        raise InputError(f"{p}: FREQUENCY {token(freq)} is not a number (an external timebase "
                          "export has no fixed rate)") from None
     if not math.isfinite(rate) or rate <= 0:
-        raise InputError(f"{p}: FREQUENCY must be positive, got {freq!r}")
+        raise InputError(f"{p}: FREQUENCY must be positive, got {token(freq)}")
     names = list(header["MARKER_NAMES"])
     while names and not names[-1]:
         names.pop()
@@ -123,12 +123,12 @@ def read_qualisys_tsv(path, units: str | None = None) -> Recording:
             values[r] = [_float(fields[c]) for c in cols]
         except ValueError:
             bad = next(c for c in cols if not _is_number(fields[c]))
-            raise InputError(f"{p}, line {line_no}: non-numeric value {fields[bad][:20]!r} in "
+            raise InputError(f"{p}, line {line_no}: non-numeric value {token(fields[bad])} in "
                              f"field {bad + 1}") from None
-    scale = unit_scale(units, f"{p} (units setting)") if units is not None else 1.0
     xyz = values.reshape(n_frames, n_markers, 3)
     xyz[(xyz == 0).all(axis=2)] = np.nan
-    return Recording(names, xyz * scale, rate, source=str(p))
+    # QTM exports 3-D data in mm: the format's own units win over the sheet's
+    return Recording(names, xyz, rate, source=str(p), units="mm", units_source="file")
 
 
 def _is_number(text: str) -> bool:

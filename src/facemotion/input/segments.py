@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, token
 from facemotion.recording import Recording
 
 KINDS = ("textgrid", "events", "tsv")
@@ -150,11 +150,12 @@ def read_textgrid_tier(path, tier: str) -> list[tuple[float, float, str]]:
     try:
         tg = textgrid.openTextgrid(str(p), includeEmptyIntervals=False)
     except Exception as e:  # praatio raises several kinds on malformed files
-        detail = str(e).splitlines()[0][:120] if str(e) else "no detail"
+        detail = str(e).splitlines()[0][:80] if str(e) else "no detail"
         raise InputError(f"{p}: cannot read as a Praat TextGrid ({type(e).__name__}: "
                          f"{detail})") from None
     if tier not in tg.tierNames:
-        raise InputError(f"{p}: no tier {tier!r} (tiers: {', '.join(tg.tierNames) or 'none'})")
+        tiers = ", ".join(token(t) for t in tg.tierNames[:10]) or "none"
+        raise InputError(f"{p}: no tier {tier!r} (tiers: {tiers})")
     t = tg.getTier(tier)
     if not isinstance(t, textgrid.IntervalTier):
         raise InputError(f"{p}: tier {tier!r} is a point tier; sentences need an interval tier")
@@ -225,8 +226,9 @@ def pair_events(events: list[tuple[str, float]], start_label: str, end_label: st
     chosen = [(t, lab) for lab, t in events if lab in (start_label, end_label)]
     if not chosen:
         have = sorted({lab for lab, _ in events})
+        listing = ", ".join(token(x) for x in have[:10]) or "none"
         raise InputError(f"{where}: no events labelled {start_label!r} or {end_label!r} "
-                         f"(events in the file: {', '.join(have[:10]) or 'none'})")
+                         f"(events in the file: {listing})")
     # at equal times an end closes the previous sentence before a start opens the next
     chosen.sort(key=lambda x: (x[0], 0 if x[1] == end_label else 1))
     pairs: list[tuple[float, float]] = []
@@ -263,7 +265,7 @@ def read_interval_table(path) -> list[tuple[int, str, float, float, str]]:
     try:
         df = pd.read_csv(p, sep="\t", dtype=str, keep_default_na=False, comment="#")
     except Exception as e:
-        raise InputError(f"{p}: cannot be parsed as TSV ({str(e).splitlines()[0][:120]})") \
+        raise InputError(f"{p}: cannot be parsed as TSV ({str(e).splitlines()[0][:80]})") \
             from None
     df.columns = [str(c).strip() for c in df.columns]
     missing = [c for c in TSV_COLUMNS if c not in df.columns]
@@ -280,7 +282,7 @@ def read_interval_table(path) -> list[tuple[int, str, float, float, str]]:
             try:
                 vals.append(float(str(rec[col]).strip()))
             except ValueError:
-                raise InputError(f"{p}, line {i}: {col} {str(rec[col])[:20]!r} is not a "
+                raise InputError(f"{p}, line {i}: {col} {token(rec[col])} is not a "
                                  "number") from None
         name = _clean_name(rec["name"])
         if not name:
@@ -376,7 +378,7 @@ def _segments_from_tables(spec, takes, sheet_dir, where, shared_data):
                 have = ", ".join(Path(t).stem for t in takes[:8])
                 what = (f"the take of this table is {Path(own_take).stem!r}" if own_take
                         else f"the subject's takes are {have}{', ...' if len(takes) > 8 else ''}")
-                raise InputError(f"{where}: {path}, line {line}: take {key!r} is not a "
+                raise InputError(f"{where}: {path}, line {line}: take {token(key)} is not a "
                                  f"recording of this subject ({what})")
             rows_of[take].append((line, s, e, name, path))
     segments = []
@@ -427,4 +429,5 @@ def cut(rec: Recording, seg: Segment) -> Recording:
     i0, i1 = frame_range(float(seg.start_s), float(seg.end_s), rec.rate, rec.n_frames, where)
     return Recording(rec.labels, rec.points[i0:i1].copy(), rec.rate,
                      source=f"{rec.source or seg.take} [{seg.name}]",
-                     filled=rec.filled[i0:i1].copy())
+                     filled=rec.filled[i0:i1].copy(), units=rec.units,
+                     units_source=rec.units_source)
