@@ -180,3 +180,13 @@ def test_a_file_of_model_outputs_only_is_an_error(tmp_path):
     with pytest.raises(InputError, match=r"angles.c3d: no marker points \(all 2 points are "
                                          r"angles\)"):
         read_c3d(path)
+
+
+def test_labels_known_at_parse_time_follow_the_subject_prefix():
+    from facemotion.readers import read_labels
+
+    path = suite() / "ktk_tennis_serve_2players.c3d"
+    labels = read_labels(path, "c3d", subject_prefix="Viktor")
+    assert labels == read_recording(path, "c3d", subject_prefix="Viktor").labels
+    with pytest.raises(InputError, match="several subjects"):
+        read_labels(path, "c3d")

@@ -82,7 +82,6 @@ def block_study(tmp_path_factory):
     make_blocks(sentence_files, data / "takes", {"block1": [0, 1, 2], "block2": [3, 4, 5]})
     sheet = data / "subjects.tsv"
     sheet.write_text(
-        "# a one-take-per-block session, cut two ways, and the same sentences one per file\n"
         "subject\trecordings\tformat\thead_markers\texclude_markers\tsegments\n"
         f"split\t{sim}/results/virtual/S1/S1_s*.c3d\tc3d\t{HEAD}\t{HEAD}\t\n"
         f"events\ttakes/block*.c3d\tc3d\t{HEAD}\t{HEAD}\tevents:Sentence Start,Sentence End\n"

@@ -295,7 +295,10 @@ def test_openface_without_3d_landmarks(tmp_path):
 def test_the_same_take_from_three_exports_gives_the_same_A(tmp_path):
     """A take exported as QTM TSV, Motive CSV and the wide CSV, cut by one interval table."""
     labels, pts = planted(frames=120, markers=("H1", "H2", "H3", "Chin", "LipU", "LipL"))
-    pts[:, :3] = pts[0, :3]  # a still head
+    t = np.arange(120)[:, None, None] / RATE
+    pts = pts[0] + 4.0 * np.sin(2 * np.pi * 1.5 * t + np.arange(18).reshape(1, 6, 3))
+    pts[:, :3] = pts[0, :3]  # a still head; the face moves a few mm at speech rates
+    pts[70, 4] = np.nan
     pts = np.round(pts, 6)  # what the wide CSV writer keeps, so all three hold the same numbers
     write_qtm(tmp_path / "block.tsv", labels, pts)
     write_motive(tmp_path / "block.csv", labels, pts)
