@@ -6,7 +6,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= 2
 
-.PHONY: study test real smoke report bench lint venv clean constraints
+.PHONY: study test real smoke report bench lint venv clean constraints docs
 
 $(BIN)/python:
 	@command -v $(PY) >/dev/null 2>&1 || { echo "need $(PY) (Python 3.11)"; exit 1; }
@@ -38,6 +38,12 @@ test: venv
 
 bench: venv
 	$(BIN)/python benchmarks/run_all.py
+
+# API reference from the docstrings -> docs/api/index.html (git-ignored). Every module is named,
+# since the package's __all__ lists only the top-level API.
+docs: venv
+	$(BIN)/pdoc -o docs/api facemotion $$(cd src && find facemotion -name '*.py' \
+	  ! -name '__init__.py' ! -name '__main__.py' | sed 's/\.py$$//; s,/,.,g' | sort)
 
 lint: venv
 	$(BIN)/snakemake --lint

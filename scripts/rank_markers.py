@@ -1,7 +1,5 @@
 """Rank markers by QR with column pivoting; epsilon-rank (paper Fig. 2)."""
 
-import pandas as pd
-
 from facemotion.displacements import load_displacements
 from facemotion.loading import split_roles
 from facemotion.pivoted_qr import epsilon_rank, rank_markers
@@ -10,26 +8,11 @@ from facemotion.provenance import save_figure, write_table
 from facemotion.snakemake_adapter import run_step
 
 
-def r_values_table(ranking, normalisation):
-    """|r_kk| in the three readings of Fig. 2's normalisation, and the chosen one."""
-    return pd.DataFrame({
-        "order": range(1, len(ranking.r) + 1),
-        "marker": ranking.labels_in_order,
-        "r": ranking.r,
-        "r_rms": ranking.normalised_r("per_coordinate"),
-        "r_rms_frame": ranking.normalised_r("per_frame"),
-        "r_normalised": ranking.normalised_r(normalisation),
-        "r_normalisation": normalisation,
-        # False past the pivots the QR rule chose (fewer rows than markers, or k_max)
-        "ranked": [i < ranking.n_ranked for i in range(len(ranking.r))],
-    })
-
-
 def main(sm, log, prov):
     train, _ = split_roles(load_displacements(sm.input.npz), sm.input.sentences)
     ranking = rank_markers(train.A, train.labels, method=sm.params.method)
     norm = sm.params.r_normalisation
-    table = r_values_table(ranking, norm)
+    table = ranking.to_frame(norm)  # |r_kk| in the three readings of Fig. 2, and the chosen
     write_table(table, sm.output.r_values, "r_values", prov)
     rank = epsilon_rank(ranking, list(sm.params.tolerances_mm), normalisation=norm)
     write_table(rank, sm.output.rank, "rank", prov)

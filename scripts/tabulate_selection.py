@@ -5,6 +5,7 @@ import pandas as pd
 from facemotion.plots.rank import plot_r_values
 from facemotion.plots.selection import plot_selection_agreement
 from facemotion.provenance import save_figure, write_table
+from facemotion.selector import selection_table
 from facemotion.snakemake_adapter import run_step
 
 
@@ -13,10 +14,7 @@ def main(sm, log, prov):
     r_tables = {lab: pd.read_csv(p, sep="\t", dtype={"marker": str})
                 for lab, p in zip(labels, sm.input.r_values, strict=True)}
     n = sm.params.orders
-    table = pd.DataFrame({"order": range(1, n + 1)})
-    for lab, t in r_tables.items():
-        col = list(t["marker"][:n]) + [""] * max(0, n - len(t))
-        table[lab] = col
+    table = selection_table({lab: t["marker"] for lab, t in r_tables.items()}, n)
     write_table(table, sm.output.table, "selected_markers", prov)
     fig = plot_selection_agreement(table, k=min(10, n))
     save_figure(fig, [sm.output.sel_png, sm.output.sel_pdf], "selected_markers", prov)

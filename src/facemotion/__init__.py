@@ -2,8 +2,112 @@
 
 Two classic analyses, reproducible end to end:
 
-* independent kinematic regions by QR with column pivoting (Lucero & Munhall 2008);
-* a finite-element lip model trained from data (Basu & Pentland 1997).
+* independent kinematic regions by QR with column pivoting (Lucero & Munhall 2008, J. Acoust.
+  Soc. Am. 124:2283);
+* a finite-element lip model trained from data (Basu & Pentland 1997), in `facemotion.lips`.
+
+From a file to the paper's quantities::
+
+    import facemotion as fm
+
+    take = fm.read("take.c3d")                      # labels, points (frames, markers, 3) mm
+    data = fm.load(["s1.c3d", "s2.c3d"], heldout=[1],
+                   head_markers=["ForeHead_M", "NoseTop", "Leye_Inside"],
+                   exclude_markers=["ForeHead_M", "NoseTop", "Leye_Inside"])
+    ranking = fm.rank_markers(data.train)           # A P = Q R (Sec. II.C)
+    ranking.to_frame()                              # pivot order and r values
+    fm.epsilon_rank(ranking, [0.5])                 # epsilon-rank (Sec. III)
+    X = fm.fit_regions(ranking, k=10)               # X = R11^-1 R12 (Sec. II.D)
+    fm.error_curve(ranking, data.heldout.A, data.heldout.labels)   # Fig. 10
+
+The single steps are there too: `align_head` (rigid head motion), `fill_gaps`,
+`displacement_matrix` (A from recordings), `predict`, `sentence_sweep`, and a scikit-learn
+style `MarkerSelector` with forced-in and excluded markers.  Every name is imported on first
+use, so ``import facemotion`` is cheap and needs neither Snakemake nor matplotlib.
 """
 
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+# public name -> (module, attribute); imported on first access (PEP 562)
+_LAZY = {
+    "read": ("facemotion.readers", "read_recording"),
+    "load": ("facemotion.loading", "load"),
+    "align_head": ("facemotion.head_motion", "align_head"),
+    "fill_gaps": ("facemotion.gaps", "fill_gaps"),
+    "gap_report": ("facemotion.gaps", "gap_report"),
+    "displacement_matrix": ("facemotion.displacements", "build_displacements"),
+    "rank_markers": ("facemotion.pivoted_qr", "rank_markers"),
+    "epsilon_rank": ("facemotion.pivoted_qr", "epsilon_rank"),
+    "fit_regions": ("facemotion.prediction", "fit_coefficients"),
+    "predict": ("facemotion.prediction", "predict"),
+    "error_curve": ("facemotion.prediction", "error_curve"),
+    "sentence_sweep": ("facemotion.sentence_sweep", "sentence_sweep"),
+    "MarkerSelector": ("facemotion.selector", "MarkerSelector"),
+    "selection_table": ("facemotion.selector", "selection_table"),
+    "Recording": ("facemotion.recording", "Recording"),
+    "Displacements": ("facemotion.displacements", "Displacements"),
+    "LoadedDataset": ("facemotion.loading", "LoadedDataset"),
+    "MarkerRanking": ("facemotion.pivoted_qr", "MarkerRanking"),
+    "InputError": ("facemotion.errors", "InputError"),
+}
+_SUBMODULES = ("lips",)
+
+__all__ = [*_LAZY, *_SUBMODULES]
+
+if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
+    from facemotion import lips
+    from facemotion.displacements import Displacements
+    from facemotion.displacements import build_displacements as displacement_matrix
+    from facemotion.errors import InputError
+    from facemotion.gaps import fill_gaps, gap_report
+    from facemotion.head_motion import align_head
+    from facemotion.loading import LoadedDataset, load
+    from facemotion.pivoted_qr import MarkerRanking, epsilon_rank, rank_markers
+    from facemotion.prediction import error_curve, predict
+    from facemotion.prediction import fit_coefficients as fit_regions
+    from facemotion.readers import read_recording as read
+    from facemotion.recording import Recording
+    from facemotion.selector import MarkerSelector, selection_table
+    from facemotion.sentence_sweep import sentence_sweep
+
+
+class _Package(types.ModuleType):
+    """The package module, keeping API functions that share their name with a submodule.
+
+    Importing a submodule sets the package's attribute of that name to it (the import system's
+    ``setattr(package, "sentence_sweep", module)``), which would replace the function
+    ``facemotion.sentence_sweep``.  ``from facemotion.sentence_sweep import ...`` still works.
+    """
+
+    _shadowed = frozenset({"sentence_sweep"})
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in self._shadowed and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        module, attr = _LAZY[name]
+        value = getattr(importlib.import_module(module), attr)
+    elif name in _SUBMODULES:
+        value = importlib.import_module(f"facemotion.{name}")
+    else:
+        raise AttributeError(f"module 'facemotion' has no attribute {name!r}")
+    globals()[name] = value  # cache: later look-ups skip __getattr__
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -65,6 +65,17 @@ class Displacements:
         """(F, n, 3) displacements, the inverse of the frame-major layout of A."""
         return self.A.reshape(self.n_frames, 3, -1).transpose(0, 2, 1)
 
+    def to_frame(self):
+        """A as a pandas DataFrame: one column per marker (mm), rows indexed by
+        (sentence, frame, axis) in the frame-major order of A."""
+        import pandas as pd
+
+        index = pd.MultiIndex.from_arrays(
+            [np.asarray(self.sentences, dtype=object)[self.row_sentence], self.row_frame,
+             np.tile(np.array(["x", "y", "z"], dtype=object), self.n_frames)],
+            names=["sentence", "frame", "axis"])
+        return pd.DataFrame(self.A, index=index, columns=list(self.labels))
+
     def select_markers(self, labels) -> Displacements:
         """Only these markers (columns), in this order; an unknown label is an error."""
         labels = [str(x) for x in labels]
@@ -146,10 +157,13 @@ def label_difference(rec: Recording, first: Recording) -> str:
     return "; ".join(what)
 
 
-def build_displacements(recordings: list[Recording], names: list[str],
-                        neutral: str = "first_frame", head_residuals=None) -> Displacements:
-    """Stack the sentences' displacements from their neutral poses into A.
+def build_displacements(recordings: list[Recording] | Recording,
+                        names: list[str] | None = None, neutral: str = "first_frame",
+                        head_residuals=None) -> Displacements:
+    """Stack the sentences' displacements from their neutral poses into A
+    (``facemotion.displacement_matrix``).
 
+    names: one per recording; default: each recording's file name without its suffix.
     neutral: "first_frame" (each sentence's first frame) or "mean_first_10" (mean of its
     first 10 frames). head_residuals: per-sentence (frames,) arrays from
     :func:`facemotion.head_motion.align_head`, or None (zeros). All recordings must share
@@ -158,7 +172,10 @@ def build_displacements(recordings: list[Recording], names: list[str],
     if neutral not in NEUTRAL_MODES:
         raise InputError(f"neutral setting must be one of {', '.join(NEUTRAL_MODES)}, "
                          f"got {neutral!r}")
-    recordings = list(recordings)
+    recordings = [recordings] if isinstance(recordings, Recording) else list(recordings)
+    if names is None:
+        names = [Path(r.source).stem if r.source else f"take{i + 1}"
+                 for i, r in enumerate(recordings)]
     names = [str(x) for x in names]
     if not recordings:
         raise InputError("displacements: no recordings given")

@@ -30,6 +30,10 @@ log = logging.getLogger("facemotion")
 
 @dataclass
 class LoadedDataset:
+    """A dataset loaded by :func:`load_dataset`: A for all sentences (training first), the gap
+    report (one row per marker), the sentences table (file, role, frames, head-fit residual),
+    and the masks behind the gap figure."""
+
     displacements: Displacements
     gap_report: pd.DataFrame
     sentences: pd.DataFrame
@@ -37,6 +41,16 @@ class LoadedDataset:
     missing: np.ndarray       # (F, n) bool, missing before filling
     filled: np.ndarray        # (F, n) bool, filled (by us or the producer)
     sentence_starts_s: list[float]
+
+    @property
+    def train(self) -> Displacements:
+        """The training sentences' displacements (the rows of A the ranking is made from)."""
+        return split_roles(self.displacements, self.sentences)[0]
+
+    @property
+    def heldout(self) -> Displacements | None:
+        """The held-out sentences' displacements, or None without held-out sentences."""
+        return split_roles(self.displacements, self.sentences)[1]
 
 
 def _aggregate_gap_reports(reports: list[pd.DataFrame]) -> pd.DataFrame:
@@ -199,3 +213,34 @@ def split_roles(d: Displacements, sentences: pd.DataFrame | str | Path
     if not train:
         raise InputError("dataset has no training sentences")
     return d.subset(train), (d.subset(held) if held else None)
+
+
+def load(paths, *, heldout=(), fmt: str | None = None, head_markers=(), exclude_markers=(),
+         include_markers=(), **options) -> LoadedDataset:
+    """Load takes into one dataset (``facemotion.load``), by the path the workflow uses.
+
+    paths: one file or a list of files (the sentences, in this order).
+    heldout: 0-based indices into ``paths`` of the held-out sentences; the others train.
+    fmt: "c3d", "trc" or "csv"; default: from the first file's suffix.
+    head_markers: >= 3 markers that move with the head only (removed as rigid motion).
+    exclude_markers / include_markers: markers left out of / kept in the analysis.
+    options: the other settings of :func:`load_dataset` (``units``, ``max_interp_s``,
+        ``long_gaps``, ``neutral``), with its defaults (those of the workflow's config).
+    """
+    from facemotion.readers import infer_format
+
+    paths = [str(paths)] if isinstance(paths, str | Path) else [str(p) for p in paths]
+    if not paths:
+        raise InputError("paths: no recordings given")
+    held = sorted({int(i) for i in heldout})
+    bad = [i for i in held if not 0 <= i < len(paths)]
+    if bad:
+        raise InputError(f"heldout: sentence index(es) {bad} out of range for "
+                         f"{len(paths)} recording(s)")
+    train = [i for i in range(len(paths)) if i not in set(held)]
+    if not train:
+        raise InputError("heldout: every recording is held out; at least one must train")
+    return load_dataset(paths, fmt or infer_format(paths[0]), head_markers=list(head_markers),
+                        exclude_markers=list(exclude_markers),
+                        include_markers=list(include_markers), train=train, heldout=held,
+                        **options)

@@ -160,6 +160,23 @@ class MarkerRanking:
         """|r_kk| under a normalisation of R (``R_NORMALISATIONS``), mm."""
         return self.r / r_scale(self.rows, normalisation)
 
+    def to_frame(self, normalisation: str = DEFAULT_R_NORMALISATION) -> pd.DataFrame:
+        """The ranking as a table, in pivot order: ``order`` (1-based), ``marker``, ``r`` =
+        |r_kk| (mm), ``r_rms`` and ``r_rms_frame`` (|r_kk| per coordinate sample and per frame,
+        mm), ``r_normalised`` under ``normalisation`` (named in ``r_normalisation``), and
+        ``ranked`` (False past the pivots the QR rule chose)."""
+        return pd.DataFrame({
+            "order": range(1, len(self.r) + 1),
+            "marker": self.labels_in_order,
+            "r": self.r,
+            "r_rms": self.normalised_r("per_coordinate"),
+            "r_rms_frame": self.normalised_r("per_frame"),
+            "r_normalised": self.normalised_r(normalisation),
+            "r_normalisation": normalisation,
+            # False past the pivots the QR rule chose (fewer rows than markers, or k_max)
+            "ranked": [i < self.n_ranked for i in range(len(self.r))],
+        })
+
     def numerical_rank(self) -> int:
         """Number of pivots with r_kk > rtol * r_11 (R11 of that size is safely invertible)."""
         if self.r.size == 0 or self.r[0] == 0:

@@ -55,17 +55,32 @@ def unit_scale(unit: str, where: str) -> float:
     return _MM_PER_UNIT[key]
 
 
-def read_recording(path, fmt: str, units: str | None = None,
-                   subject_prefix: str | None = None) -> Recording:
-    """Read one take in format ``fmt`` (one of FORMATS).
+#: Formats told by the file's suffix when none is given (the vendor exports need ``fmt``).
+SUFFIX_FORMATS = {".c3d": "c3d", ".trc": "trc", ".csv": "csv"}
 
-    ``units`` (the subject sheet's) applies only when the file does not state its own. Labels
-    "Subject:Marker" lose their prefix; a file with several subjects needs ``subject_prefix``
-    (see :mod:`facemotion.input.prefixes`).
+
+def infer_format(path) -> str:
+    """The format of a file from its suffix (.c3d, .trc, .csv, any case)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in SUFFIX_FORMATS:
+        raise InputError(f"{path}: cannot tell the format from the suffix "
+                         f"{Path(path).suffix or '(none)'!r}; give the format "
+                         f"({', '.join(FORMATS)})")
+    return SUFFIX_FORMATS[suffix]
+
+
+def read_recording(path, fmt: str | None = None, units: str | None = None,
+                   subject_prefix: str | None = None) -> Recording:
+    """Read one take (``facemotion.read``): labelled marker trajectories in mm.
+
+    fmt: one of FORMATS; default: from the file's suffix (.c3d, .trc, .csv).
+    units (mm, cm, m, in): the subject sheet's, applied only when the file does not state its
+    own. Labels "Subject:Marker" lose their prefix; a file with several subjects needs
+    ``subject_prefix`` (see :mod:`facemotion.input.prefixes`). Missing samples are NaN.
     """
     from facemotion.input.prefixes import select_subject
 
-    fmt_key = str(fmt).strip().lower()
+    fmt_key = infer_format(path) if fmt is None else str(fmt).strip().lower()
     readers = _readers()
     if fmt_key not in readers:
         raise InputError(f"{path}: unknown format {fmt!r} (supported: {', '.join(FORMATS)})")

@@ -70,6 +70,23 @@ class Recording:
                              f"(have {len(self.labels)} markers: {', '.join(self.labels[:8])}"
                              f"{', ...' if len(self.labels) > 8 else ''})") from None
 
+    @property
+    def time_s(self) -> np.ndarray:
+        """Time of each frame (s) from the start of the take."""
+        return np.arange(self.n_frames) / self.rate
+
+    def to_frame(self):
+        """The trajectories as a pandas DataFrame: index ``time_s``, columns (marker, axis), mm.
+
+        Missing samples are NaN; the fill mask is not included (see ``filled``).
+        """
+        import pandas as pd
+
+        columns = pd.MultiIndex.from_product([self.labels, ["x", "y", "z"]],
+                                             names=["marker", "axis"])
+        return pd.DataFrame(self.points.reshape(self.n_frames, -1), columns=columns,
+                            index=pd.Index(self.time_s, name="time_s"))
+
     def select(self, labels: list[str]) -> Recording:
         """A new recording with only these markers, in this order."""
         idx = [self.index(label) for label in labels]

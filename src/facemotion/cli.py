@@ -1,0 +1,240 @@
+"""The ``facemotion`` command line: quick one-file answers, and a front door to the study.
+
+    facemotion info take.c3d                          # labels, rate, units, frames, gaps
+    facemotion rank s1.c3d s2.c3d --head A,B,C        # first pivots, r values, epsilon-rank
+    facemotion study --configfile config/real.yaml    # the Snakemake workflow
+
+``rank`` loads the files by the workflow's own path (:func:`facemotion.load`: read, remove head
+motion, select markers, fill gaps, displacements) with the workflow's default settings, so its
+first pivots are those of a dataset of the same files in the study.  Errors are one line on
+stderr and a non-zero exit status (2 for a wrong command line, 1 for bad input).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import click
+
+from facemotion import __version__
+from facemotion.errors import InputError
+from facemotion.pivoted_qr import DEFAULT_R_NORMALISATION, R_NORMALISATIONS
+
+#: Tolerances (mm) of the epsilon-rank when none are given: the study's default (qr.tolerances_mm).
+DEFAULT_TOLERANCES_MM = (0.25, 0.5, 1.0)
+
+
+def _labels(ctx, param, value) -> list[str]:
+    """A comma-separated list of marker labels (the option may also be repeated)."""
+    out = [x.strip() for v in value for x in v.split(",") if x.strip()]
+    return out
+
+
+def _numbers(ctx, param, value) -> list[float]:
+    out = []
+    for v in value:
+        for x in v.split(","):
+            if not x.strip():
+                continue
+            try:
+                out.append(float(x))
+            except ValueError:
+                raise click.BadParameter(f"{x.strip()!r} is not a number") from None
+    return out
+
+
+FORMAT = click.option(
+    "--format", "fmt", type=click.Choice(["c3d", "trc", "csv"], case_sensitive=False),
+    default=None, help="File format. Default: from the file suffix (.c3d, .trc, .csv).")
+UNITS = click.option(
+    "--units", default=None, metavar="UNIT",
+    help="Units (mm, cm, m, in) of a file that does not state its own (a CSV file, or a C3D/TRC "
+         "file without POINT:UNITS/Units); a file's own units always apply. Default: such a "
+         "CSV file is read as mm. Everything is reported in mm.")
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, prog_name="facemotion")
+def cli() -> None:
+    """How the face moves during speech: kinematic regions by QR with column pivoting
+    (Lucero & Munhall 2008) and a lip model trained from data (Basu & Pentland 1997).
+
+    Run `facemotion COMMAND --help` for a command's options.
+    """
+
+
+@cli.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@FORMAT
+@UNITS
+@click.option("--markers/--no-markers", default=True, show_default=True,
+              help="List every marker with its missing samples and gaps.")
+def info(file: str, fmt: str | None, units: str | None, markers: bool) -> None:
+    """What a recording holds: markers, frame rate, units, frames and gaps (missing samples).
+
+    FILE is one take (C3D, TRC or CSV). Coordinates are converted to mm on reading; the units
+    line says what the file declared.
+    """
+    from facemotion.gaps import gap_report
+    from facemotion.readers import read_recording
+
+    rec = read_recording(file, fmt, units=units)
+    report = gap_report(rec)
+    n_missing = int(report["missing_frames"].sum())
+    total = rec.n_frames * rec.n_markers
+    click.echo(f"file: {rec.source}")
+    click.echo(f"markers: {rec.n_markers}")
+    click.echo(f"rate: {rec.rate:g} Hz")
+    click.echo(f"frames: {rec.n_frames} ({rec.n_frames / rec.rate:.3f} s)")
+    where = {"file": "declared by the file", "sheet": "from --units",
+             "default": "not declared, read as mm"}.get(rec.units_source, rec.units_source)
+    click.echo(f"units: {rec.units} ({where}; reported in mm)")
+    gappy = report[report["n_gaps"] > 0]
+    click.echo(f"missing samples: {n_missing} of {total} "
+               f"({100.0 * n_missing / total if total else 0.0:.2f}%), "
+               f"{int(report['n_gaps'].sum())} gap(s) in {len(gappy)} marker(s)")
+    if markers:
+        table = report[["marker", "missing_frames", "n_gaps", "longest_gap_frames"]]
+        click.echo(table.to_string(index=False))
+
+
+@cli.command()
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--head", "head", multiple=True, callback=_labels, metavar="A,B,C",
+              help="Head markers (at least 3, comma-separated): markers that move only with "
+                   "the head (forehead, nose bridge, inner eye corners). Their rigid motion is "
+                   "removed from every marker, as in the study. Default: none (no head "
+                   "correction).")
+@click.option("--exclude", "exclude", multiple=True, callback=_labels, metavar="A,B,...",
+              help="Markers left out of the ranking (comma-separated), e.g. the head markers "
+                   "themselves, which no longer move once the head motion is removed.")
+@click.option("--include", "include", multiple=True, callback=_labels, metavar="A,B,...",
+              help="Rank only these markers (comma-separated). Default: every marker of the "
+                   "file not excluded.")
+@click.option("--tolerance", "tolerances", multiple=True, callback=_numbers,
+              metavar="MM[,MM...]",
+              help="Tolerances epsilon (mm) of the epsilon-rank, comma-separated. Default: "
+                   + ", ".join(f"{t:g}" for t in DEFAULT_TOLERANCES_MM) + " (the study's).")
+@click.option("--r-normalisation", type=click.Choice(list(R_NORMALISATIONS)),
+              default=DEFAULT_R_NORMALISATION, show_default=True,
+              help="Reading of the paper's 'R values normalized to the size of R' (Fig. 2) that "
+                   "the tolerances apply to: none (|r_kk| and ||R22||_2 in mm), per_coordinate "
+                   "(divided by sqrt(rows of A)) or per_frame (by sqrt(frames)); the study's "
+                   "qr.r_normalisation.")
+@click.option("--first", "n_first", type=click.IntRange(min=1), default=10, show_default=True,
+              help="How many first pivots to print on the 'first pivots' line.")
+@click.option("--method", type=click.Choice(["auto", "gram", "tsqr", "scipy"]),
+              default="auto", show_default=True,
+              help="Route of the QR with column pivoting (all give the same pivots; see "
+                   "facemotion.pivoted_qr).")
+@click.option("--max-interp-s", type=click.FloatRange(min=0), default=None, metavar="S",
+              help="Longest gap (s) filled by cubic interpolation; longer gaps by PCA. "
+                   "Default: the study's (0.1 s).")
+@click.option("--long-gaps", type=click.Choice(["pca", "error"]), default=None,
+              help="Longer gaps: fill by PCA from the other markers, or stop with an error. "
+                   "Default: the study's (pca).")
+@click.option("--neutral", type=click.Choice(["first_frame", "mean_first_10"]), default=None,
+              help="Neutral pose each take's displacements are measured from. Default: the "
+                   "study's (first_frame).")
+@FORMAT
+@UNITS
+def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, method,
+         max_interp_s, long_gaps, neutral, fmt, units) -> None:
+    """Rank the markers of one or more takes by QR with column pivoting (Lucero & Munhall
+    2008, Sec. II.C) and give the epsilon-rank (Sec. III).
+
+    FILES are the takes (sentences) of one talker, stacked into one displacement matrix A as in
+    the study (all of them train). Prints the first pivots, the r values in pivot order
+    (r = |r_kk| in mm, and its normalised readings) and, for each tolerance, the epsilon-rank
+    (the smallest k with ||R22||_2 <= tolerance) beside the count of |r_kk| above it.
+    """
+    import facemotion as fm
+
+    options = {k: v for k, v in (("units", units), ("max_interp_s", max_interp_s),
+                                 ("long_gaps", long_gaps), ("neutral", neutral))
+               if v is not None}
+    data = fm.load(list(files), fmt=fmt, head_markers=head, exclude_markers=exclude,
+                   include_markers=include, **options)
+    train = data.train
+    ranking = fm.rank_markers(train, method=method)
+    rows, n = train.A.shape
+    click.echo(f"A: {rows} rows ({rows // 3} frames) x {n} markers from {len(files)} take(s)")
+    click.echo(f"first pivots: {', '.join(ranking.labels_in_order[:n_first])}")
+    click.echo("")
+    click.echo(ranking.to_frame(r_normalisation).to_string(
+        index=False, float_format=lambda x: f"{x:.6g}"))
+    click.echo("")
+    table = fm.epsilon_rank(ranking, list(tolerances) or list(DEFAULT_TOLERANCES_MM),
+                            normalisation=r_normalisation)
+    # the redundant markers are the pivots after the epsilon-rank, in the order printed above
+    click.echo(table.drop(columns=["redundant_markers"], errors="ignore").to_string(index=False))
+
+
+def _workflow_snakefile() -> Path:
+    """The repository's Snakefile (an install from a source checkout, e.g. pip install -e)."""
+    snakefile = Path(__file__).resolve().parents[2] / "Snakefile"
+    if not snakefile.is_file():
+        raise InputError(
+            f"no Snakefile next to this installation ({snakefile.parent}); "
+            "the workflow ships with the source repository: clone it and pip install -e "
+            "'.[workflow]', or run snakemake -s /path/to/facemotion/Snakefile")
+    return snakefile
+
+
+@cli.command(context_settings={"ignore_unknown_options": True, "allow_extra_args": True})
+@click.argument("snakemake_args", nargs=-1, type=click.UNPROCESSED)
+def study(snakemake_args) -> None:
+    """Run the Snakemake study: `snakemake -s <repository>/Snakefile SNAKEMAKE_ARGS...`.
+
+    Every argument is passed to snakemake unchanged, e.g. `facemotion study --configfile
+    config/real.yaml`, `facemotion study -n` (dry run), `facemotion study -- --help`
+    (snakemake's own options). Without --cores/--jobs/--profile it runs on 2 cores. Outputs go
+    to results/ under the current directory (or --directory). Needs the workflow extra:
+    pip install 'facemotion[workflow]'.
+    """
+    if importlib.util.find_spec("snakemake") is None:
+        raise InputError("Snakemake is not installed; `facemotion study` needs the workflow "
+                         "extra: pip install 'facemotion[workflow]'")
+    args = list(snakemake_args)
+    if args[:1] == ["--"]:
+        args = args[1:]
+    if not any(a in ("-s", "--snakefile") or a.startswith("--snakefile=") for a in args):
+        args = ["--snakefile", str(_workflow_snakefile()), *args]
+    scheduling = ("-c", "--cores", "-j", "--jobs", "--profile", "--workflow-profile", "-h",
+                  "--help", "--version", "-v")
+    if not any(a in scheduling or a.split("=")[0] in scheduling
+               or (a.startswith("-c") and a[2:].isdigit())
+               or (a.startswith("-j") and a[2:].isdigit()) for a in args):
+        args = ["--cores", "2", *args]
+    proc = subprocess.run([sys.executable, "-m", "snakemake", *args], check=False)
+    if proc.returncode:
+        sys.exit(proc.returncode)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the ``facemotion`` command (one-line errors, non-zero exit status)."""
+    try:
+        status = cli.main(args=argv, prog_name="facemotion", standalone_mode=False)
+    except click.exceptions.Exit as e:
+        sys.exit(e.exit_code)
+    except click.Abort:
+        click.echo("facemotion: aborted", err=True)
+        sys.exit(130)
+    except click.ClickException as e:
+        hint = ""
+        if isinstance(e, click.UsageError) and e.ctx is not None:
+            hint = f" (see '{e.ctx.command_path} --help')"
+        click.echo(f"facemotion: error: {e.format_message()}{hint}", err=True)
+        sys.exit(e.exit_code)
+    except InputError as e:
+        click.echo(f"facemotion: error: {e}", err=True)
+        sys.exit(1)
+    if isinstance(status, int) and status:
+        sys.exit(status)
+
+
+if __name__ == "__main__":
+    main()
