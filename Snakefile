@@ -2,6 +2,9 @@
 # Lucero & Munhall (2008) kinematic regions and Basu & Pentland (1997) lip model.
 
 
+report: "workflow/report/workflow.rst"
+
+
 include: "workflow/rules/common.smk"
 include: "workflow/rules/simulate.smk"
 include: "workflow/rules/data.smk"
