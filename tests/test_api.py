@@ -24,6 +24,7 @@ def test_import_is_light():
 
 
 def test_every_public_name_resolves():
+    assert sorted(fm.__all__) == sorted([*fm._LAZY, *fm._SUBMODULES])
     for name in fm.__all__:
         assert getattr(fm, name) is not None, name
         assert name in dir(fm)

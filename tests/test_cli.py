@@ -127,7 +127,8 @@ def test_rank_prints_the_workflows_first_pivots_on_animface(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "snakemake", *targets, "-s", str(REPO / "Snakefile"),
          "--directory", str(tmp_path), "--cores", "2", "--configfile",
-         str(tmp_path / "config.yaml")], capture_output=True, text=True, env=dict(os.environ, PYTHONHASHSEED="0"))
+         str(tmp_path / "config.yaml")], capture_output=True, text=True,
+        env=dict(os.environ, PYTHONHASHSEED="0"))
     assert proc.returncode == 0, proc.stderr[-4000:]
     for target, files in zip(targets, [takes, takes[1:]], strict=True):
         workflow = pd.read_csv(tmp_path / target, sep="\t")

@@ -59,7 +59,12 @@ _LAZY = {
 }
 _SUBMODULES = ("lips",)
 
-__all__ = [*_LAZY, *_SUBMODULES]
+__all__ = [  # the same names as _LAZY and _SUBMODULES (a literal list, for linters and pdoc)
+    "read", "load", "align_head", "fill_gaps", "gap_report", "displacement_matrix",
+    "rank_markers", "epsilon_rank", "fit_regions", "predict", "error_curve", "sentence_sweep",
+    "MarkerSelector", "selection_table", "Recording", "Displacements", "LoadedDataset",
+    "MarkerRanking", "InputError", "lips",
+]
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
     from facemotion import lips

@@ -30,7 +30,7 @@ import pandas as pd
 import scipy.linalg
 
 from facemotion.errors import InputError
-from facemotion.pivoted_qr import MarkerRanking, _ranking, _unpack, rank_markers
+from facemotion.pivoted_qr import MarkerRanking, _ranking, rank_markers
 from facemotion.prediction import fit_coefficients
 
 
