@@ -15,7 +15,7 @@ def main(sm, log, prov):
                          settle_tolerance=sm.params.settle_tolerance,
                          r_normalisation=sm.params.r_normalisation)
     row = {"sweep": sm.wildcards.sweep, "dataset": sm.params.label,
-           "point": int(sm.wildcards.point), **row}
+           "point": sm.wildcards.point, **row}
     log.info("%s", row)
     write_table(pd.DataFrame([row]), sm.output.table, "summary", prov)
 

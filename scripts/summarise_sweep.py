@@ -9,10 +9,11 @@ from facemotion.snakemake_adapter import run_step
 
 def main(sm, log, prov):
     table = pd.concat([pd.read_csv(p, sep="\t", dtype={"redundant_markers": str,
-                                                       "first_pivots": str},
+                                                       "first_pivots": str, "point": str},
                                    keep_default_na=False, na_values=[""])
                        for p in sm.input], ignore_index=True)
-    table = table.sort_values(["dataset", "point"], kind="stable").reset_index(drop=True)
+    # inputs come in grid order within each dataset; keep it
+    table = table.sort_values(["dataset"], kind="stable").reset_index(drop=True)
     write_table(table, sm.output.table, "summary", prov)
     fig = plot_sweep_summary(table, title=f"sweep {sm.wildcards.sweep}")
     save_figure(fig, [sm.output.png, sm.output.pdf], "sweep_summary", prov)

@@ -19,10 +19,26 @@ def test_expand_grid_is_the_cartesian_product_in_order():
     pts = expand_grid({"tolerance_mm": [0.25, 0.5], "k": [5, 10, 15]})
     assert len(pts) == 6
     assert pts[0] == {"tolerance_mm": 0.25, "k": 5, "train_sentences": None,
-                      "marker_subset": None}
+                      "marker_subset": None, "name": "tolerance_mm~0.25_k~5"}
     assert pts[-1]["tolerance_mm"] == 0.5 and pts[-1]["k"] == 15
     assert expand_grid({}) == [{"tolerance_mm": 0.5, "k": 10, "train_sentences": None,
-                                "marker_subset": None}]
+                                "marker_subset": None, "name": "default"}]
+
+
+def test_point_names_say_their_values_and_survive_a_new_grid_value():
+    before = {p["name"]: p for p in expand_grid({"tolerance_mm": [0.5, 1], "k": [5, 10]})}
+    after = {p["name"]: p for p in expand_grid({"tolerance_mm": [0.25, 0.5, 1],
+                                                "k": [5, 7, 10]})}
+    assert set(before) <= set(after)  # adding values adds points, renames none
+    for name, point in before.items():
+        assert after[name] == point
+        tol, k = name.split("_k~")
+        assert float(tol.removeprefix("tolerance_mm~")) == point["tolerance_mm"]
+        assert int(k) == point["k"]
+    pts = expand_grid({"train_sentences": [3], "marker_subsets": {"lips": ["a", "b"]}})
+    assert [p["name"] for p in pts] == ["train_sentences~3_marker_subset~lips"]
+    with pytest.raises(InputError, match="tolerance_mm: value.*0.5 repeated"):
+        expand_grid({"tolerance_mm": [0.5, 0.50]})
 
 
 def test_settled_after_finds_the_last_excursion():

@@ -18,11 +18,28 @@ GRID_KEYS = ("tolerance_mm", "k", "train_sentences", "marker_subset")
 DEFAULTS = {"tolerance_mm": 0.5, "k": 10, "train_sentences": None, "marker_subset": None}
 
 
+def _value_name(value) -> str:
+    """A grid value as written in a point's name: floats in their shortest exact form."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return str(value)
+    return str(value) if isinstance(value, int) else repr(float(value))
+
+
+def point_name(point: dict, axes) -> str:
+    """The name of a sweep point from its value on each axis, as Snakemake's ``Paramspace``
+    writes file names (``axis~value`` joined by ``_``), e.g. ``tolerance_mm~0.5_k~10``.
+
+    A point's name depends only on its own values, so adding a value to a grid adds points
+    without renaming the others."""
+    return "_".join(f"{axis}~{_value_name(point[axis])}" for axis in axes) or "default"
+
+
 def expand_grid(spec: dict) -> list[dict]:
     """The cartesian product of the sweep's value lists, in a fixed order.
 
     ``marker_subsets`` (name -> labels) becomes the axis ``marker_subset`` (its names, sorted);
-    each point then carries the name and its ``markers``.
+    each point then carries the name and its ``markers``.  Each point's ``name`` is
+    :func:`point_name` over the sweep's axes; a value repeated on an axis is an InputError.
     """
     spec = dict(spec)
     subsets = spec.pop("marker_subsets", None) or {}
@@ -30,12 +47,18 @@ def expand_grid(spec: dict) -> list[dict]:
         spec["marker_subset"] = sorted(subsets)
     keys = [k for k in GRID_KEYS if spec.get(k)]
     values = [list(spec[k]) for k in keys]
+    for key, vals in zip(keys, values, strict=True):
+        names = [_value_name(v) for v in vals]
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise InputError(f"sweep setting {key}: value(s) {', '.join(dup)} repeated")
     points = []
     for combo in itertools.product(*values) if keys else [()]:
         point = dict(DEFAULTS)
         point.update(dict(zip(keys, combo, strict=True)))
         if point["marker_subset"] is not None:
             point["markers"] = [str(m) for m in subsets[point["marker_subset"]]]
+        point["name"] = point_name(point, keys)
         points.append(point)
     return points
 

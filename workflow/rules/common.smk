@@ -21,8 +21,11 @@ from facemotion.subjects import read_subject_sheet, resolve_datasets
 
 min_version("9.0")
 
-REPO = Path(workflow.basedir)
-SCRIPTS = REPO / "scripts"
+# The repository of this workflow, from this file's folder (workflow.basedir is the *main*
+# Snakefile's folder: another project's when this workflow is used as a module; source_path
+# gives a source-cache copy). None when the workflow is read from a remote (github(...)).
+_HERE = Path(workflow.current_basedir.get_path_or_uri(secret_free=True))
+REPO = _HERE.parents[1] if _HERE.is_dir() else None
 
 # With no --configfile the default study's config is the base; --config values override it.
 # `--config subjects=SHEET` alone runs the default settings on your sheet, one dataset per
@@ -53,12 +56,14 @@ def _resolve(path):
     p = Path(path)
     if p.is_absolute() or p.exists():
         return p
-    if (REPO / p).exists():
+    if REPO is not None and (REPO / p).exists():
         return REPO / p
     return p
 
 
-SHARED_DATA = Path(config["shared_data"] or (REPO.parent / "shared" / "data"))
+SHARED_DATA = Path(
+    config["shared_data"] or (REPO or Path.cwd()).parent / "shared" / "data"
+)
 SHEET = _resolve(config["subjects"])
 with exit_on_error():
     SUBJECTS = read_subject_sheet(
@@ -267,7 +272,10 @@ with exit_on_error():
     for _name, _spec in config["sweeps"].items():
         check_sweep(_name, _spec, COUNTS)
         _dsets = _spec.get("datasets") or list(DATASETS)
-        SWEEPS[_name] = {"datasets": _dsets, "points": expand_grid(_spec)}
+        SWEEPS[_name] = {
+            "datasets": _dsets,
+            "points": {p["name"]: p for p in expand_grid(_spec)},
+        }
     check_lip_frames(
         config,
         {ls: _lip_frames(ls, spec) for ls, spec in config["lips"]["subjects"].items()},
@@ -275,11 +283,12 @@ with exit_on_error():
 
 
 def sweep_point_files(wildcards):
+    """One table per dataset and point, named by the point's values (sweeps.point_name)."""
     sw = SWEEPS[wildcards.sweep]
     return [
-        f"results/sweeps/{wildcards.sweep}/{d}/point_{i:03d}.tsv"
+        f"results/sweeps/{wildcards.sweep}/{d}/{name}.tsv"
         for d in sw["datasets"]
-        for i in range(len(sw["points"]))
+        for name in sw["points"]
     ]
 
 

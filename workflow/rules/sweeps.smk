@@ -6,12 +6,12 @@ rule run_sweep_point:
         npz="results/{dataset}/data/displacements.npz",
         sentences="results/{dataset}/data/sentences.tsv",
     output:
-        table="results/sweeps/{sweep}/{dataset}/point_{point}.tsv",
-        meta="results/sweeps/{sweep}/{dataset}/point_{point}.meta.json",
+        table="results/sweeps/{sweep}/{dataset}/{point}.tsv",
+        meta="results/sweeps/{sweep}/{dataset}/{point}.meta.json",
     log:
         "results/logs/run_sweep_point/{sweep}_{dataset}_{point}.log",
     wildcard_constraints:
-        point=r"\d+",
+        point=r"default|[A-Za-z_]+~[^/]+",
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -19,7 +19,7 @@ rule run_sweep_point:
         mem_mb=4000,
         runtime=10,
     params:
-        point=lambda wc: SWEEPS[wc.sweep]["points"][int(wc.point)],
+        point=lambda wc: SWEEPS[wc.sweep]["points"][wc.point],
         label=lambda wc: DATASETS[wc.dataset].label,
         method=config["qr"]["method"],
         settle_tolerance=config["qr"]["settle_tolerance"],
