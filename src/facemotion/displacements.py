@@ -8,6 +8,7 @@ marker ``labels[j]``, in mm.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
