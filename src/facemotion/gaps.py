@@ -43,12 +43,15 @@ Accuracy (checked in tests/test_gaps.py):
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pandas as pd
-from scipy.interpolate import CubicSpline
 
 from facemotion.errors import InputError
 from facemotion.recording import Recording
+
+if TYPE_CHECKING:  # pandas and scipy are imported where they are used (lazy imports)
+    import pandas as pd
 
 REPORT_COLUMNS = ["marker", "frames", "missing_frames", "missing_fraction",
                   "longest_gap_frames", "n_gaps", "filled_frames", "fill_method"]
@@ -89,6 +92,8 @@ def gap_report(rec: Recording, filled_by_us: np.ndarray | None = None,
     ``rec.filled`` (by the producer) or in ``filled_by_us``. ``missing``: the missing mask of
     ``rec`` if already computed.
     """
+    import pandas as pd
+
     miss = missing_mask(rec) if missing is None else missing
     filled = rec.filled.copy()
     if filled_by_us is not None:
@@ -228,6 +233,8 @@ def fill_gaps(rec: Recording, max_interp_s: float = 0.1, long_gaps: str = "pca",
     Every sample filled here is set True in ``filled.filled``; samples flagged by the
     producer stay flagged.
     """
+    from scipy.interpolate import CubicSpline  # imported here: a heavy import few jobs need
+
     src = rec.source or "recording"
     if long_gaps not in LONG_GAP_METHODS:
         raise InputError(f"{src}: long_gaps setting must be one of {', '.join(LONG_GAP_METHODS)}"

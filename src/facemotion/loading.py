@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -19,11 +20,13 @@ from facemotion.displacements import (
     check_same_take_layout,
 )
 from facemotion.errors import InputError
-from facemotion.gaps import fill_gaps
-from facemotion.head_motion import align_head
 from facemotion.input.segments import Segment, cut
-from facemotion.readers import read_recording
-from facemotion.validation import Limits, check_take
+
+if TYPE_CHECKING:
+    from facemotion.validation import Limits
+
+# read_recording, align_head, fill_gaps and the validation are imported in load_dataset: a job
+# that only splits a dataset's rows (split_roles) does not load the readers or scipy.
 
 log = logging.getLogger("facemotion")
 
@@ -88,6 +91,11 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     with ``limits``) on the markers the analysis uses (the analysed and the head markers)
     before head motion is removed.
     """
+    from facemotion.gaps import fill_gaps
+    from facemotion.head_motion import align_head
+    from facemotion.readers import read_recording
+    from facemotion.validation import Limits, check_take
+
     limits = limits or Limits()
     items = [Segment.from_param(s) for s in (sentences if sentences is not None
                                               else recordings)]

@@ -37,6 +37,8 @@ from facemotion.errors import InputError, token
 from facemotion.recording import Recording
 
 FORMATS = ("c3d", "trc", "csv", "qualisys_tsv", "optitrack_csv", "openface_csv")
+#: Parse regular TRC/CSV text with the C parser (benchmarks switch it off to compare).
+FAST_TEXT = True
 
 # Millimetres per unit, with the spellings found in C3D/TRC files.
 _MM_PER_UNIT = {
@@ -456,26 +458,12 @@ def check_trc_time(path, line_numbers, frame_numbers, times, rate: float) -> Non
                          "missing, repeated or out of order, or DataRate is wrong")
 
 
-def read_trc(path, units: str | None = None) -> Recording:
-    """Read a TRC file (OpenSim / Motion Analysis text format); empty fields are missing.
-
-    Layout: ``PathFileType`` line; the header keys line (DataRate ... OrigNumFrames) and its
-    values; ``Frame#  Time  label1 _ _ label2 ...``; ``_ _ X1 Y1 Z1 ...``; optional blank
-    line; one line per frame: frame number, time, then x y z per marker, every field present
-    (:func:`check_trc_fields`), times on the DataRate grid (:func:`check_trc_time`). The rate is
-    DataRate; the units the header's Units (``units`` only when the header has none).
-    """
-    p = _check_readable(path)
-    try:
-        with open(p, encoding="utf-8-sig") as fh:
-            lines = fh.readlines()
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"{p}: cannot read TRC text ({type(e).__name__})") from None
+def _trc_header(p: Path, lines: list[str], units: str | None):
+    """The TRC header (lines 1-5): (rate, n_frames, labels, scale, units used, their source)."""
     if not lines or not lines[0].startswith("PathFileType"):
         raise InputError(f"{p}: not a TRC file (first line does not start with PathFileType)")
     if len(lines) < 5:
         raise InputError(f"{p}: TRC header is incomplete ({len(lines)} lines)")
-    check_last_line_ended(p, lines)
     keys = [k.strip() for k in _split_line(lines[1])]
     vals = [v.strip() for v in _split_line(lines[2])]
     if len(vals) > len(keys) and any(vals[len(keys):]):
@@ -510,6 +498,36 @@ def read_trc(path, units: str | None = None) -> Recording:
     if len(labels) != n_markers:
         raise InputError(f"{p}: TRC header says NumMarkers={n_markers} but line 4 names "
                          f"{len(labels)} markers")
+    return rate, n_frames, labels, scale, used, source
+
+
+def read_trc(path, units: str | None = None) -> Recording:
+    """Read a TRC file (OpenSim / Motion Analysis text format); empty fields are missing.
+
+    Layout: ``PathFileType`` line; the header keys line (DataRate ... OrigNumFrames) and its
+    values; ``Frame#  Time  label1 _ _ label2 ...``; ``_ _ X1 Y1 Z1 ...``; optional blank
+    line; one line per frame: frame number, time, then x y z per marker, every field present
+    (:func:`check_trc_fields`), times on the DataRate grid (:func:`check_trc_time`). The rate is
+    DataRate; the units the header's Units (``units`` only when the header has none).
+
+    Regular files are parsed at C-parser speed (:func:`_fast_numeric_lines`); anything the
+    fast path does not take plainly goes through the exact line-by-line reader below, which
+    gives the errors, so both return the same recording or the same error.
+    """
+    p = _check_readable(path)
+    if FAST_TEXT:
+        rec = _read_trc_fast(p, units)
+        if rec is not None:
+            return rec
+    try:
+        with open(p, encoding="utf-8-sig") as fh:
+            lines = fh.readlines()
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{p}: cannot read TRC text ({type(e).__name__})") from None
+    if lines and lines[0].startswith("PathFileType") and len(lines) >= 5:
+        check_last_line_ended(p, lines)  # before the header's checks, as always
+    rate, n_frames, labels, scale, used, source = _trc_header(p, lines, units)
+    n_markers = len(labels)
     ncol = 2 + 3 * n_markers
     rows, numbers = [], []
     for i, line in enumerate(lines[5:], start=6):
@@ -536,6 +554,36 @@ def read_trc(path, units: str | None = None) -> Recording:
                          f"field {bad[1] + 1}") from None
     check_trc_time(p, numbers, values[:, 0], values[:, 1], rate)
     xyz = values[:, 2:].reshape(n_frames, n_markers, 3) * scale
+    return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
+
+
+def _read_trc_fast(p: Path, units: str | None) -> Recording | None:
+    """The TRC reader's fast path: the header as in :func:`read_trc`, the data lines by
+    :func:`_fast_numeric_lines`; None sends the file to the exact path."""
+    try:
+        with open(p, "rb") as fh:
+            head = [fh.readline() for _ in range(5)]
+            offset = fh.tell()
+        lines = [h.decode("utf-8-sig" if i == 0 else "utf-8") for i, h in enumerate(head)]
+    except (OSError, UnicodeDecodeError):
+        return None
+    if len(lines[-1]) == 0 or not lines[-1].endswith("\n"):
+        return None
+    try:
+        rate, n_frames, labels, scale, used, source = _trc_header(p, lines, units)
+    except InputError:
+        return None  # the exact path reports it, in its order of checks
+    ncol = 2 + 3 * len(labels)
+    if n_frames < 1:
+        return None
+    got = _fast_numeric_lines(p, offset, 6, ncol, b"\t", max_rows=n_frames, empty_extra=True)
+    if got is None:
+        return None
+    values, numbers = got
+    check_trc_time(p, numbers, values[:, 0], values[:, 1], rate)
+    xyz = values[:, 2:].reshape(n_frames, len(labels), 3)  # a view: no copy of the data
+    if scale != 1.0:
+        xyz *= scale
     return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
 
 
@@ -574,36 +622,10 @@ def write_trc(path, rec: Recording) -> None:
 
 # ----------------------------------------------------------------------------------------- CSV
 
-def read_csv(path, units: str | None = None) -> Recording:
-    """Read a wide CSV: ``time`` (s), then ``<label>_x``, ``<label>_y``, ``<label>_z`` columns.
-
-    The rate is 1 / (the time step), which must be uniform (within 1 % of the mean step).
-    Units are mm unless ``units`` (the sheet's) is given: a CSV does not state its units.
-    Empty cells are missing samples; every row must have a cell for every column, and the
-    last line must end with a line end (a CSV has no frame count, so a cut file is caught
-    only when the cut falls inside a line).
-    """
-    p = _check_readable(path)
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"{p}: cannot read as CSV text ({type(e).__name__})") from None
-    lines = text.splitlines(keepends=True) if "\x00" not in text else None
-    if lines is None:
-        raise InputError(f"{p}: cannot read as CSV text (binary content)")
-    check_last_line_ended(p, lines)
-    try:
-        table = list(csv.reader(io.StringIO(text, newline="")))
-    except csv.Error as e:
-        raise InputError(f"{p}: cannot read as CSV ({str(e).splitlines()[0][:80]})") from None
-    # a blank line is skipped; a line of commas is a frame with empty fields
-    numbers = [i + 1 for i, r in enumerate(table) if len(r) > 1 or (r and r[0].strip())]
-    table = [r for r in table if len(r) > 1 or (r and r[0].strip())]
-    if not table:
-        raise InputError(f"{p}: CSV file is empty")
-    cols = [str(c).strip() for c in table[0]]
+def _csv_columns(p: Path, cols: list[str], line: int):
+    """Marker labels and the column of each axis from a wide CSV's header (InputError else)."""
     if cols[0] != "time":
-        raise InputError(f"{p}: line {numbers[0]}: first column must be 'time', got "
+        raise InputError(f"{p}: line {line}: first column must be 'time', got "
                          f"{token(cols[0])}")
     labels: list[str] = []
     axes: dict[str, dict[str, int]] = {}
@@ -625,6 +647,53 @@ def read_csv(path, units: str | None = None) -> Recording:
         if lacking:
             raise InputError(f"{p}: marker {token(label)} has no column(s) "
                              + ", ".join(token(f"{label}_{a}") for a in lacking))
+    return labels, axes
+
+
+def _read_csv_fast(p: Path):
+    """The CSV reader's fast path: (columns, labels, axes, values, line numbers) or None."""
+    try:
+        with open(p, "rb") as fh:
+            first = fh.readline()
+            offset = fh.tell()
+        header = first.decode("utf-8-sig")
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not header.endswith("\n") or '"' in header or not header.strip() or "\x00" in header:
+        return None
+    cols = [c.strip() for c in header.rstrip("\r\n").split(",")]
+    try:
+        labels, axes = _csv_columns(p, cols, 1)
+    except InputError:
+        return None
+    got = _fast_numeric_lines(p, offset, 2, len(cols), b",")
+    if got is None or got[0].shape[0] < 2:
+        return None
+    values, numbers = got
+    return cols, labels, axes, values, np.concatenate([[1], numbers])
+
+
+def _read_csv_exact(p: Path):
+    """The exact CSV path: (columns, labels, axes, values, line numbers) or InputError."""
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{p}: cannot read as CSV text ({type(e).__name__})") from None
+    lines = text.splitlines(keepends=True) if "\x00" not in text else None
+    if lines is None:
+        raise InputError(f"{p}: cannot read as CSV text (binary content)")
+    check_last_line_ended(p, lines)
+    try:
+        table = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as e:
+        raise InputError(f"{p}: cannot read as CSV ({str(e).splitlines()[0][:80]})") from None
+    # a blank line is skipped; a line of commas is a frame with empty fields
+    numbers = [i + 1 for i, r in enumerate(table) if len(r) > 1 or (r and r[0].strip())]
+    table = [r for r in table if len(r) > 1 or (r and r[0].strip())]
+    if not table:
+        raise InputError(f"{p}: CSV file is empty")
+    cols = [str(c).strip() for c in table[0]]
+    labels, axes = _csv_columns(p, cols, numbers[0])
     for r, n in zip(table[1:], numbers[1:], strict=True):
         if len(r) != len(cols):
             raise InputError(f"{p}: line {n} has {len(r)} fields but the header has "
@@ -642,6 +711,27 @@ def read_csv(path, units: str | None = None) -> Recording:
                     raise InputError(f"{p}: non-numeric value {token(v)} in line "
                                      f"{numbers[i + 1]} column {j + 1}") from None
         raise
+    return cols, labels, axes, values, numbers
+
+
+def read_csv(path, units: str | None = None) -> Recording:
+    """Read a wide CSV: ``time`` (s), then ``<label>_x``, ``<label>_y``, ``<label>_z`` columns.
+
+    The rate is 1 / (the time step), which must be uniform (within 1 % of the mean step).
+    Units are mm unless ``units`` (the sheet's) is given: a CSV does not state its units.
+    Empty cells are missing samples; every row must have a cell for every column, and the
+    last line must end with a line end (a CSV has no frame count, so a cut file is caught
+    only when the cut falls inside a line).
+
+    Regular files are parsed at C-parser speed (:func:`_fast_numeric_lines`); anything else
+    goes through the exact reader (Python's csv module), which gives the errors.
+    """
+    p = _check_readable(path)
+    fast = _read_csv_fast(p) if FAST_TEXT else None
+    if fast is not None:
+        cols, labels, axes, values, numbers = fast
+    else:
+        cols, labels, axes, values, numbers = _read_csv_exact(p)
     t = values[:, 0]
     if not np.isfinite(t).all():
         i = int(np.flatnonzero(~np.isfinite(t))[0])
@@ -676,3 +766,104 @@ def write_csv(path, rec: Recording) -> None:
         out.append(f"{f / rec.rate:.9g}," + ",".join(_fmt(x) for x in flat[f]))
     with _atomic_path(path) as tmp:
         tmp.write_text("\n".join(out) + "\n", encoding="utf-8")
+
+
+# ------------------------------------------------------------------------- fast numeric tables
+
+#: Bytes of text parsed per chunk by the fast path (bounds its temporary memory).
+FAST_CHUNK_BYTES = 16 * 2**20
+
+
+def _fast_numeric_lines(path: Path, offset: int, first_line: int, ncol: int, sep: bytes,
+                        max_rows: int | None = None, empty_extra: bool = False):
+    """Numeric data lines of a text table at C-parser speed, or None to use the exact path.
+
+    Reads from byte ``offset`` (line number ``first_line``) in chunks of whole lines: numpy
+    finds each line's end and counts its separators; pandas' C parser (quoting off, only an
+    empty field is missing) converts the chunk. Returns (values (lines x ncol) float64, the
+    1-based line number of each data line). Returns None whenever the text is not plainly
+    regular - a line with another number of fields, a line of spaces, NUL or non-ASCII bytes,
+    a last line without a line end, a token the C parser does not take as a number, other
+    than ``max_rows`` lines when given - so that the exact line-by-line reader gives the error
+    or the reading. Extra fields beyond ``ncol`` are taken only when empty and ``empty_extra``
+    (TRC: some writers end lines with a tab; a CSV row must match its header). The values are
+    those the exact reader returns (pandas' default float parser: identical on 300,000 random
+    values written with 6 decimals, the writers' format).
+    """
+    import csv as _csv
+
+    import pandas as pd
+
+    sep_code = ord(sep)
+    out = None if max_rows is None else np.empty((max_rows, ncol))
+    blocks, numbers = [], []
+    rows = 0
+    line_no = first_line
+    carry = b""
+    with open(path, "rb") as fh:
+        fh.seek(offset)
+        while True:
+            data = fh.read(FAST_CHUNK_BYTES)
+            buf = carry + data
+            if not data:
+                if buf.strip(b" \r\n"):
+                    return None  # last line without a line end: the exact path says so
+                break
+            cut = buf.rfind(b"\n") + 1
+            if cut == 0:
+                carry = buf
+                continue
+            chunk, carry = buf[:cut], buf[cut:]
+            arr = np.frombuffer(chunk, dtype=np.uint8)
+            if np.any((arr == 0) | (arr >= 128)):
+                return None  # NUL or non-ASCII text: the exact path decodes and judges it
+            nl = np.flatnonzero(arr == 10)
+            starts = np.concatenate([[0], nl[:-1] + 1])
+            length = nl - starts
+            cr = np.zeros(nl.size, dtype=bool)
+            has = length > 0
+            cr[has] = arr[nl[has] - 1] == 13
+            length = length - cr
+            csum = np.cumsum(arr == sep_code, dtype=np.int32)
+            fields = np.diff(np.concatenate([[0], csum[nl]])) + 1
+            blank = length == 0
+            if np.any((fields == 1) & ~blank & (ncol > 1)):
+                return None  # a line without separators (spaces only, or one field)
+            data_lines = ~blank
+            f = fields[data_lines]
+            if f.size == 0:
+                line_no += nl.size
+                continue
+            if f.min() < ncol or (f.max() > ncol and not empty_extra):
+                return None
+            width = int(f.max())
+            try:
+                df = pd.read_csv(io.BytesIO(chunk), sep=sep.decode(), header=None,
+                                 names=range(width), dtype=np.float64, engine="c",
+                                 keep_default_na=False, na_values=[""],
+                                 quoting=_csv.QUOTE_NONE, skip_blank_lines=True)
+            except (ValueError, TypeError, pd.errors.ParserError):
+                return None
+            vals = df.to_numpy(dtype=np.float64)
+            if vals.shape[0] != f.size:
+                return None
+            if width > ncol:
+                if not np.isnan(vals[:, ncol:]).all():
+                    return None  # text beyond the declared fields: the exact path's error
+                vals = vals[:, :ncol]
+            if out is not None:
+                if rows + vals.shape[0] > max_rows:
+                    return None
+                out[rows:rows + vals.shape[0]] = vals
+            else:
+                blocks.append(np.ascontiguousarray(vals))
+            rows += vals.shape[0]
+            numbers.append(line_no + np.flatnonzero(data_lines))
+            line_no += nl.size
+    if rows == 0 or (out is not None and rows != max_rows):
+        return None
+    if out is not None:
+        values = out
+    else:
+        values = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+    return values, np.concatenate(numbers)
