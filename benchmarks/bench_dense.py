@@ -7,7 +7,7 @@ same run.
 Every number comes from this run: BLAS threads fixed at ``--threads`` for our routes AND for
 scipy (threadpoolctl), repetitions interleaved (ours, baseline, ours, ...), medians reported,
 the machine's double-precision GEMM rate measured at the same thread count at the start and the
-end (the peak is the larger). Peak RSS is measured per case in a child process (os.wait4).
+end (the peak is the larger). Peak RSS is measured per case in a child process (its VmHWM).
 Writes benchmarks/out/bench_dense.tsv (one row per measurement) and prints it.
 
 Cases (``--only``):
@@ -73,16 +73,24 @@ def interleaved(fns, reps):
     return [float(np.median(t)) for t in times], outs
 
 
+def vm_hwm_mib() -> float:
+    """This process's peak resident set (VmHWM, MiB). Not ru_maxrss: Linux carries a forked
+    child's maxrss over from its parent across exec, so a child of a big parent reads big."""
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
 def child(args: list[str]) -> tuple[dict, float]:
-    """Run this file with ``--worker ...`` in a child; returns (its JSON, peak RSS MiB)."""
-    p = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker", *args],
-                         stdout=subprocess.PIPE, env=os.environ.copy())
-    out = p.stdout.read()
-    _, status, ru = os.wait4(p.pid, 0)
-    p.returncode = os.waitstatus_to_exitcode(status)
+    """Run this file with ``--worker ...`` in a child; returns (its JSON, its peak RSS MiB)."""
+    p = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--worker", *args],
+                       stdout=subprocess.PIPE, env=os.environ.copy())
     if p.returncode != 0:
         raise RuntimeError(f"worker {args} failed ({p.returncode})")
-    return json.loads(out.decode().strip().splitlines()[-1]), ru.ru_maxrss / 1024.0
+    res = json.loads(p.stdout.decode().strip().splitlines()[-1])
+    return res, res.pop("peak_rss_mib")
 
 
 # ------------------------------------------------------------------------------------ cases
@@ -250,8 +258,6 @@ def case_dense(threads, reps, quick, scipy_dense):
 # ------------------------------------------------------------------------------------ workers
 
 def worker(argv):
-    import resource  # noqa: F401
-
     kind = argv[0]
     if kind == "load":
         import logging
@@ -301,8 +307,7 @@ def worker(argv):
     if kind == "read":
         import facemotion.readers as readers
         trc, mode = argv[1], argv[2]
-        import resource
-        base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+        base = vm_hwm_mib()
         if mode == "exact":
             readers.FAST_TEXT = False
         t0 = time.perf_counter()
@@ -385,7 +390,9 @@ def write_synthetic_A(Writer, path, rows, n, dense):
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv and argv[0] == "--worker":
-        print(json.dumps(worker(argv[1:])))
+        res = worker(argv[1:])
+        res["peak_rss_mib"] = vm_hwm_mib()
+        print(json.dumps(res))
         return 0
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threads", type=int, default=2)

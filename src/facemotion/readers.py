@@ -815,7 +815,7 @@ def _fast_numeric_lines(path: Path, offset: int, first_line: int, ncol: int, sep
                 continue
             chunk, carry = buf[:cut], buf[cut:]
             arr = np.frombuffer(chunk, dtype=np.uint8)
-            if np.any((arr == 0) | (arr >= 128)):
+            if arr.max() >= 128 or not arr.all():
                 return None  # NUL or non-ASCII text: the exact path decodes and judges it
             nl = np.flatnonzero(arr == 10)
             starts = np.concatenate([[0], nl[:-1] + 1])
@@ -824,8 +824,8 @@ def _fast_numeric_lines(path: Path, offset: int, first_line: int, ncol: int, sep
             has = length > 0
             cr[has] = arr[nl[has] - 1] == 13
             length = length - cr
-            csum = np.cumsum(arr == sep_code, dtype=np.int32)
-            fields = np.diff(np.concatenate([[0], csum[nl]])) + 1
+            seps = np.flatnonzero(arr == sep_code)  # separators per line, from positions
+            fields = np.diff(np.concatenate([[0], np.searchsorted(seps, nl)])) + 1
             blank = length == 0
             if np.any((fields == 1) & ~blank & (ncol > 1)):
                 return None  # a line without separators (spaces only, or one field)
