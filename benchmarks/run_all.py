@@ -1,4 +1,5 @@
-"""All benchmarks: the QR analysis against its naive baselines, then the full study's time.
+"""All benchmarks: the QR analysis against its naive baselines, dense data and memory
+(bench_dense.py), then the full study's time.
 
     python benchmarks/run_all.py [--quick]
 """
@@ -12,5 +13,6 @@ HERE = Path(__file__).resolve().parent
 if __name__ == "__main__":
     quick = ["--quick"] if "--quick" in sys.argv[1:] else []
     rc = subprocess.call([sys.executable, str(HERE / "bench_qr.py"), *quick])
+    rc |= subprocess.call([sys.executable, str(HERE / "bench_dense.py"), *quick])
     rc |= subprocess.call([sys.executable, str(HERE / "bench_study.py")])
     sys.exit(rc)

@@ -142,3 +142,34 @@ def test_streaming_writer_gives_the_same_file(tmp_path):
             head_residual=d.head_residual, neutral=d.neutral,
             sentence_neutral=d.sentence_neutral)
     assert (tmp_path / "a.npz").read_bytes() == (tmp_path / "b.npz").read_bytes()
+
+
+def test_ranking_from_disk_holds_a_block_not_the_matrix(tmp_path):
+    """A of 300 MB ranks in a child process whose peak RSS stays below A's size."""
+    import subprocess
+    import sys
+
+    n, rows = 200, 3 * 62_500  # 300 MB of float64
+    w = DisplacementsWriter(tmp_path / "big.npz", [f"V{j}" for j in range(n)], rows)
+    rng = np.random.default_rng(0)
+    W = rng.standard_normal((8, n))
+    for a in range(0, rows, 30_000):
+        m = min(30_000, rows - a)
+        w.write_rows(rng.standard_normal((m, 8)) @ W + 0.1 * rng.standard_normal((m, n)))
+    F = rows // 3
+    w.close(sentences=np.array(["s0"]), row_sentence=np.zeros(rows, dtype=np.int64),
+            row_frame=np.repeat(np.arange(F), 3), rate=np.array(30.0),
+            fill_mask=np.zeros((F, n), dtype=bool), head_residual=np.zeros(F),
+            neutral=np.zeros((n, 3)))
+    code = (
+        "import sys\n"
+        "from facemotion.displacement_file import open_displacements\n"
+        "from facemotion.pivoted_qr import rank_markers\n"
+        "rk = rank_markers(open_displacements(sys.argv[1]).rows(), method='gram', threads=1)\n"
+        "assert rk.n_ranked == 200\n"
+        "hwm = [int(x.split()[1]) for x in open('/proc/self/status') if x.startswith('VmHWM')]\n"
+        "print(hwm[0] / 1024)\n")
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "big.npz")],
+                         capture_output=True, text=True, check=True)
+    peak_mib = float(out.stdout.strip())
+    assert peak_mib < 0.8 * (8 * rows * n) / 2**20  # well below the 286 MiB of A

@@ -149,3 +149,16 @@ def test_bad_limits_name_the_setting():
         Limits(face_spread_mm=(300, 10))
     with pytest.raises(InputError, match="gaps.max_speed_mm_s"):
         Limits(max_speed_mm_s=0)
+
+
+def test_nanmedian_over_markers_equals_numpys():
+    from facemotion.validation import _nanmedian_markers
+
+    rng = np.random.default_rng(0)
+    for shape in ((50, 7, 3), (40, 8, 3), (30, 9), (20, 1, 3)):
+        x = rng.standard_normal(shape)
+        x[rng.random(shape) < 0.3] = np.nan
+        x[0] = np.nan  # a frame with nothing measured
+        with np.errstate(all="ignore"), pytest.warns(RuntimeWarning):
+            ref = np.nanmedian(x, axis=1, keepdims=True)
+        np.testing.assert_array_equal(_nanmedian_markers(x), ref)

@@ -94,6 +94,19 @@ def units_conflict(rec: Recording, sheet_units: str | None) -> str:
     return f"sheet says {sheet_units}"
 
 
+def _nanmedian_markers(x: np.ndarray) -> np.ndarray:
+    """np.nanmedian(x, axis=1, keepdims=True) for (frames, markers[, 3]) by one sort (NaN sort
+    last) and the middle of each slice's measured values: numpy's nanmedian takes a masked-array
+    path along a short axis that is ~50x slower on a 468-marker, 20,000-frame take."""
+    s = np.sort(x, axis=1)
+    c = np.count_nonzero(~np.isnan(x), axis=1, keepdims=True)
+    lo = np.take_along_axis(s, np.maximum(c - 1, 0) // 2, axis=1)
+    hi = np.take_along_axis(s, np.maximum(c, 1) // 2 - (c == 0), axis=1)
+    with np.errstate(invalid="ignore"):
+        m = (lo + hi) / 2.0
+    return np.where(c > 0, m, np.nan)
+
+
 def face_spread(rec: Recording) -> float:
     """Median over frames of the median distance (mm) of the markers to their centre.
 
@@ -107,8 +120,8 @@ def face_spread(rec: Recording) -> float:
         return float("nan")
     p = np.where(ok[frames, :, None], pts[frames], np.nan)
     with np.errstate(invalid="ignore", over="ignore"):
-        d = np.linalg.norm(p - np.nanmedian(p, axis=1, keepdims=True), axis=2)
-    return float(np.median(np.nanmedian(d, axis=1)))
+        d = np.linalg.norm(p - _nanmedian_markers(p), axis=2)
+    return float(np.median(_nanmedian_markers(d)[:, 0]))
 
 
 def check_face_spread(rec: Recording, limits: Limits) -> float:
@@ -185,7 +198,7 @@ def find_outliers(rec: Recording, limits: Limits) -> tuple[np.ndarray, list[str]
     enough = ok.sum(axis=1) >= 3
     if enough.any():
         p = np.where(ok[..., None], pts, np.nan)[enough]
-        centre = np.nanmedian(p, axis=1, keepdims=True)
+        centre = _nanmedian_markers(p)
         with np.errstate(invalid="ignore", over="ignore"):
             dist[enough] = np.nan_to_num(np.linalg.norm(p - centre, axis=2), nan=0.0)
         far = dist > limits.max_distance_mm
