@@ -97,7 +97,7 @@ def units_conflict(rec: Recording, sheet_units: str | None) -> str:
 def _nanmedian_markers(x: np.ndarray) -> np.ndarray:
     """np.nanmedian(x, axis=1, keepdims=True) for (frames, markers[, 3]) by one sort (NaN sort
     last) and the middle of each slice's measured values: numpy's nanmedian takes a masked-array
-    path along a short axis that is ~50x slower on a 468-marker, 20,000-frame take."""
+    path along a short axis (measured 3-8x slower on 4,000 frames x 468 markers x 3)."""
     s = np.sort(x, axis=1)
     c = np.count_nonzero(~np.isnan(x), axis=1, keepdims=True)
     lo = np.take_along_axis(s, np.maximum(c - 1, 0) // 2, axis=1)
