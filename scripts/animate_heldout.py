@@ -1,16 +1,14 @@
 """Animate held-out sentences: the face driven by the k main markers beside the measured one."""
 
-import math
-
 import numpy as np
 
-from facemotion.animation import render_frames, still_frame, write_animation
+from facemotion.animation import FaceAnimation, animation_page, frame_indices, write_animation
 from facemotion.displacements import load_displacements
 from facemotion.loading import split_roles
 from facemotion.pivoted_qr import rank_markers
 from facemotion.prediction import predict
-from facemotion.provenance import save_figure, sidecar_for_existing
-from facemotion.snakemake_adapter import run_step
+from facemotion.provenance import atomic_write_bytes, save_figure, sidecar_for_existing
+from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
@@ -25,18 +23,26 @@ def main(sm, log, prov):
     pred = predict(ranking, k, part.A)
     measured = part.A.reshape(-1, 3, len(d.labels)).transpose(0, 2, 1)
     model = pred.reshape(-1, 3, len(d.labels)).transpose(0, 2, 1)
-    step = math.ceil(part.rate / cfg["fps"] - 1e-9)  # every step-th frame: at most fps
-    idx = np.arange(0, measured.shape[0], step)
-    fps = part.rate / step
+    idx, fps = frame_indices(measured.shape[0], part.rate, cfg["fps"])
+    # each frame names its held-out sentence, its frame there and the time in the sentence
+    sent = part.row_sentence[::3][idx]
+    frame = part.row_frame[::3][idx]
+    n_in = {s: int(np.sum(part.row_sentence[::3] == s)) for s in set(sent.tolist())}
+    captions = [f"{sm.params.label}: held-out sentence {part.sentences[s]}, frame {f + 1} of "
+                f"{n_in[s]} (t = {f / part.rate:.2f} s)" for s, f in zip(sent, frame, strict=True)]
     log.info("animating %d frames of %d held-out sentence(s) at %.1f fps", len(idx), n, fps)
-    frames = render_frames(d.neutral, measured[idx], model[idx], d.labels, main_markers,
-                           fps=fps, grid_n=cfg["grid_n"])
-    write_animation(sm.output.anim, frames, fps)
+    anim = FaceAnimation(d.neutral, measured[idx], model[idx], d.labels, main_markers,
+                         grid_n=cfg["grid_n"])
+    write_animation(sm.output.anim, anim.frames(captions), fps)
     sidecar_for_existing(sm.output.anim, "animation", prov)
+    atomic_write_bytes(sm.output.page, animation_page(
+        sm.output.anim, f"{sm.params.label}: measured face (left) and face predicted from the "
+        f"k = {k} main markers (right, red dots), {len(idx)} frames at {fps:g} fps",
+        f"main markers: {', '.join(main_markers)}"))
+    sidecar_for_existing(sm.output.page, "animation_page", prov)
     peak = int(np.argmax(np.abs(measured[idx]).sum(axis=(1, 2))))
-    fig = still_frame(d.neutral, measured[idx][peak], model[idx][peak], d.labels, main_markers,
-                      grid_n=cfg["grid_n"])
-    save_figure(fig, [sm.output.png, sm.output.pdf], "animation_still", prov)
+    fig = anim.still(peak, captions[peak] + " - largest motion")
+    save_figure(fig, figure_paths(sm.output, "png"), "animation_still", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

@@ -10,7 +10,7 @@ from facemotion.pivoted_qr import rank_markers
 from facemotion.plots.errors import plot_error_curves, plot_trajectory
 from facemotion.prediction import error_curve, predict
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
@@ -21,8 +21,8 @@ def main(sm, log, prov):
     ranking = rank_markers(train.A, train.labels, method=p.method)
     curve = error_curve(ranking, held.A, held.labels)
     write_table(curve, sm.output.curve, "error_curve", prov)
-    fig = plot_error_curves({p.label: curve})
-    save_figure(fig, [sm.output.png, sm.output.pdf], "error_curve", prov)
+    fig = plot_error_curves({p.label: curve}, n_markers={p.label: len(held.labels)})
+    save_figure(fig, figure_paths(sm.output, "png"), "error_curve", prov)
 
     # Trajectory of one marker in one held-out sentence, model with k main markers.
     k = p.k  # checked against the markers at parse time (never clamped)
@@ -64,7 +64,7 @@ def main(sm, log, prov):
                           note=None if requested == marker else
                           f"marker {requested} requested, not in this dataset" if requested
                           else "no marker requested: the secondary marker that moves most")
-    save_figure(fig, [sm.output.traj_png, sm.output.traj_pdf], "trajectory", prov)
+    save_figure(fig, figure_paths(sm.output, "traj_png"), "trajectory", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

@@ -8,7 +8,7 @@ from facemotion.lips.study import grid_lip_study, run_virtual
 from facemotion.lips.virtual import make_virtual_talker
 from facemotion.provenance import save_figure, write_table
 from facemotion.readers import read_trc
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 from facemotion.subjects import parse_sentences
 
 
@@ -49,14 +49,14 @@ def main(sm, log, prov):
     log.info("noise variance of the regularised estimators %.4g model units^2 (%s)",
              result.noise_var, result.noise_var_choice)
     save_figure(plot_mesh(result.mesh, result.tracked, result.mesh.fixed),
-                [sm.output.mesh_png, sm.output.mesh_pdf], "lip_mesh", prov)
+                figure_paths(sm.output, "mesh_png"), "lip_mesh", prov)
     write_table(result.modes, sm.output.modes, "lip_modes", prov)
     title = (f"{name} ({subject}): mean displacement and characteristic modes "
              f"(Basu & Pentland 1997, Fig. 9)")
     save_figure(plot_modes(result.mean_displacement, result.mode_shapes, result.mesh,
                            result.mode_sd, result.mode_variance_fraction, result.unit_scale,
                            title=title),
-                [sm.output.modes_png, sm.output.modes_pdf], "lip_modes", prov)
+                figure_paths(sm.output, "modes_png"), "lip_modes", prov)
     write_table(result.fit_residuals, sm.output.residuals, "lip_fit_residuals", prov)
     recon = result.reconstruction
     recon.insert(0, "lip_subject", subject)

@@ -6,7 +6,7 @@ from facemotion.pivoted_qr import rank_markers
 from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
 from facemotion.prediction import fit_coefficients
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
@@ -19,11 +19,11 @@ def main(sm, log, prov):
     table.insert(0, "main_marker", X.index.astype(str))
     write_table(table, sm.output.table, "coefficients", prov)
     fig = plot_region_maps(d.neutral, d.labels, X, grid_n=sm.params.grid_n)
-    save_figure(fig, [sm.output.png, sm.output.pdf], "regions", prov)
+    save_figure(fig, figure_paths(sm.output, "png"), "regions", prov)
     fig = plot_orthogonal_directions(d.neutral, d.labels, ranking.R,
                                      ranking.labels_in_order,
                                      n_pivots=sm.params.orthogonal_maps)
-    save_figure(fig, [sm.output.orth_png, sm.output.orth_pdf], "orthogonal_directions", prov)
+    save_figure(fig, figure_paths(sm.output, "orth_png"), "orthogonal_directions", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

@@ -4,7 +4,7 @@ from facemotion.displacements import save_displacements
 from facemotion.loading import load_dataset
 from facemotion.plots.gaps import plot_gaps
 from facemotion.provenance import save_figure, sidecar_for_existing, write_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 from facemotion.validation import Limits
 
 
@@ -32,7 +32,7 @@ def main(sm, log, prov):
     write_table(loaded.sentences, sm.output.sentences, "sentences", prov)
     fig = plot_gaps(loaded.time_s, loaded.missing, loaded.filled, d.labels,
                     sentence_bounds=loaded.sentence_starts_s)
-    save_figure(fig, [sm.output.gap_png, sm.output.gap_pdf], "gaps", prov)
+    save_figure(fig, figure_paths(sm.output, "gap_png"), "gaps", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

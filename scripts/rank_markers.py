@@ -5,7 +5,7 @@ from facemotion.loading import split_roles
 from facemotion.pivoted_qr import epsilon_rank, rank_markers
 from facemotion.plots.rank import plot_r_values
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
@@ -19,7 +19,7 @@ def main(sm, log, prov):
     log.info("R normalisation %r; epsilon-rank (smallest k with ||R22||_2 <= epsilon) and the "
              "diagonal count: %s", norm, rank.drop(columns="redundant_markers").to_dict("records"))
     fig = plot_r_values({sm.params.label: table}, tolerances=tuple(sm.params.tolerances_mm))
-    save_figure(fig, [sm.output.png, sm.output.pdf], "r_values", prov)
+    save_figure(fig, figure_paths(sm.output, "png"), "r_values", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

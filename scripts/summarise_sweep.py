@@ -4,7 +4,7 @@ import pandas as pd
 
 from facemotion.plots.cross_subject import plot_sweep_summary
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
@@ -16,7 +16,7 @@ def main(sm, log, prov):
     table = table.sort_values(["dataset"], kind="stable").reset_index(drop=True)
     write_table(table, sm.output.table, "summary", prov)
     fig = plot_sweep_summary(table, title=f"sweep {sm.wildcards.sweep}")
-    save_figure(fig, [sm.output.png, sm.output.pdf], "sweep_summary", prov)
+    save_figure(fig, figure_paths(sm.output, "png"), "sweep_summary", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

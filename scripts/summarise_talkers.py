@@ -4,7 +4,7 @@ import pandas as pd
 
 from facemotion.plots.cross_subject import plot_talkers
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 from facemotion.sweeps import top_k_frequency
 
 NAMED = {"40": "lower_lip_40", "56": "jaw_56", "34": "left_corner_34", "38": "right_corner_38",
@@ -29,7 +29,7 @@ def main(sm, log, prov):
     freq = top_k_frequency(pd.DataFrame(selected), k=10)
     write_table(freq, sm.output.freq, "summary", prov)
     fig = plot_talkers(table, freq)
-    save_figure(fig, [sm.output.png, sm.output.pdf], "talkers", prov)
+    save_figure(fig, figure_paths(sm.output, "png"), "talkers", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

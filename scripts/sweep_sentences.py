@@ -5,7 +5,7 @@ from facemotion.loading import split_roles
 from facemotion.plots.sweep import plot_sentence_sweep
 from facemotion.provenance import save_figure, write_table
 from facemotion.sentence_sweep import sentence_sweep, stability
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
@@ -20,7 +20,7 @@ def main(sm, log, prov):
     write_table(result.settling, sm.output.stability, "stability", prov)
     write_table(result.agreement, sm.output.agreement, "stability", prov)
     fig = plot_sentence_sweep(sweep)
-    save_figure(fig, [sm.output.png, sm.output.pdf], "sentence_sweep", prov)
+    save_figure(fig, figure_paths(sm.output, "png"), "sentence_sweep", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

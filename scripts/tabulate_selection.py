@@ -6,7 +6,7 @@ from facemotion.plots.rank import plot_r_values
 from facemotion.plots.selection import plot_selection_agreement
 from facemotion.provenance import save_figure, write_table
 from facemotion.selector import selection_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
@@ -17,7 +17,7 @@ def main(sm, log, prov):
     table = selection_table({lab: t["marker"] for lab, t in r_tables.items()}, n)
     write_table(table, sm.output.table, "selected_markers", prov)
     fig = plot_selection_agreement(table, k=min(10, n))
-    save_figure(fig, [sm.output.sel_png, sm.output.sel_pdf], "selected_markers", prov)
+    save_figure(fig, figure_paths(sm.output, "sel_png"), "selected_markers", prov)
     ranks = []
     for lab, p in zip(labels, sm.input.rank, strict=True):
         r = pd.read_csv(p, sep="\t", dtype={"redundant_markers": str}, keep_default_na=False)
@@ -25,7 +25,7 @@ def main(sm, log, prov):
         ranks.append(r)
     write_table(pd.concat(ranks, ignore_index=True), sm.output.summary, "summary", prov)
     fig = plot_r_values(r_tables, tolerances=tuple(sm.params.tolerances_mm))
-    save_figure(fig, [sm.output.png, sm.output.pdf], "r_values_all", prov)
+    save_figure(fig, figure_paths(sm.output, "png"), "r_values_all", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

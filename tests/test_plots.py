@@ -319,3 +319,129 @@ def test_selection_agreement():
     assert [t.get_text() for t in heat.get_yticklabels()] == c3["marker"].tolist()
     assert [p.get_width() for p in bar.patches] == c3["count"].tolist()
     assert heat.get_xlabel() and heat.get_ylabel() and bar.get_xlabel()
+
+
+# ---------------------------------------------------------------- legibility (issue 10)
+
+
+def _text_boxes(fig, ax):
+    """Rendered extents of an axes' tick labels and texts (an annotation's text alone)."""
+    from matplotlib.text import Text
+
+    fig.draw_without_rendering()
+    r = fig._get_renderer()
+    ticks = [t for t in ax.get_xticklabels() + ax.get_yticklabels()
+             if t.get_visible() and t.get_text()]
+    return ([t.get_window_extent(r) for t in ticks],
+            [(t.get_text(), Text.get_window_extent(t, r)) for t in ax.texts])
+
+
+def _assert_legible(fig, ax):
+    ticks, texts = _text_boxes(fig, ax)
+    boxes = ticks + [b for _, b in texts]
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            assert not boxes[i].overlaps(boxes[j]), (i, j)
+    inner = ax.get_window_extent(fig._get_renderer())
+    for text, b in texts:  # labels stay inside the axes, off the tick labels
+        assert inner.x0 <= b.x0 and b.x1 <= inner.x1 and inner.y0 <= b.y0, text
+
+
+@pytest.mark.parametrize("n_datasets,n_markers", [(1, 7), (1, 57), (7, 44), (1, 468)])
+def test_r_values_labels_never_overlap(n_datasets, n_markers):
+    rng = np.random.default_rng(n_markers)
+    tables = {}
+    for d in range(n_datasets):
+        r = np.sort(np.geomspace(8, 0.03, n_markers) * np.exp(0.2 * rng.standard_normal(
+            n_markers)))[::-1]
+        tables[f"dataset_{d}"] = pd.DataFrame({
+            "order": np.arange(1, n_markers + 1),
+            "marker": [f"L{j:03d}" for j in rng.permutation(468)[:n_markers]],
+            "r": r, "r_rms": r, "r_normalised": r, "r_normalisation": "none"})
+    fig = plot_r_values(tables)
+    (ax,) = fig.axes
+    _assert_legible(fig, ax)
+    labelled = {t.get_text() for t in ax.texts} - {"ε = 0.25 mm", "ε = 0.5 mm", "ε = 1 mm"}
+    assert labelled  # at least the last pivot of one dataset is named
+    last = {t["marker"].iloc[-1] for t in tables.values()}
+    assert labelled & last
+
+
+def test_error_curves_leave_out_k_equal_n():
+    n = 12
+    k = np.arange(1, n + 1)
+    err = np.where(k < n, 2.0 / k, 0.0)
+    curve = pd.DataFrame({"k": k, "mean_abs_error_mm": err, "rel_error_per_marker": err / 4,
+                          "median_abs_error_mm": err, "max_abs_error_mm": 3 * err})
+    for kwargs in ({}, {"n_markers": {"S1": n}}):   # from the table's contract, or given
+        fig = plot_error_curves({"S1": curve}, **kwargs)
+        ax_abs, ax_rel = fig.axes
+        for ax in (ax_abs, ax_rel):
+            for line in ax.get_lines():
+                assert n not in np.asarray(line.get_xdata()).tolist()
+        assert 0.0 not in ax_rel.get_lines()[0].get_ydata()
+        assert f"n = {n} (S1)" in fig.get_supxlabel()
+        assert "undefined" in fig.get_supxlabel()
+    # a curve without a k = n row keeps all its points
+    fig = plot_error_curves({"S1": curve[curve["k"] < n]})
+    assert len(fig.axes[1].get_lines()[0].get_xdata()) == n - 1
+    assert fig.get_supxlabel() == ""
+
+
+def test_sentence_sweep_with_two_takes_has_integer_ticks():
+    rows = [{"n_sentences": s, "order": o, "marker": f"m{o}", "r_rms": 1.0 / o + 0.1 * s}
+            for s in (1, 2) for o in range(1, 6)]
+    fig = plot_sentence_sweep(pd.DataFrame(rows))
+    (ax,) = fig.axes
+    fig.draw_without_rendering()
+    lo, hi = ax.get_xlim()
+    ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
+    assert ticks and all(float(t).is_integer() for t in ticks)
+
+
+def _sweep_table():
+    """Two marker subsets x two k on one dataset, the subsets with different epsilon-ranks."""
+    rows = []
+    for sub, n, rank in (("face", 44, 6), ("lips_jaw", 27, 5)):
+        for k in (5, 10):
+            rows.append({"dataset": "grid_t1", "marker_subset": sub, "n_markers": n,
+                         "tolerance_mm": 0.5, "k": k, "train_sentences": 1,
+                         "epsilon_rank": rank, "heldout_mean_abs_error_mm": n / (100 * k),
+                         "sentences_to_settle": np.nan})
+    return pd.DataFrame(rows)
+
+
+def test_sweep_summary_shows_each_subset_and_averages_nothing():
+    from facemotion.plots.cross_subject import plot_sweep_summary
+
+    table = _sweep_table()
+    fig = plot_sweep_summary(table, title="sweep grid_landmarks")
+    data_axes = [ax for ax in fig.axes if ax.axison]
+    drawn = {ax.get_ylabel(): np.concatenate([ln.get_ydata() for ln in ax.get_lines()])
+             for ax in data_axes}
+    # epsilon-rank: each subset's own value, never their mean 5.5
+    ranks = drawn["epsilon-rank"]
+    assert sorted(ranks.tolist()) == [5, 6] and 5.5 not in ranks
+    (rank_ax,) = [ax for ax in data_axes if ax.get_ylabel() == "epsilon-rank"]
+    ticks = [t.get_text() for t in rank_ax.get_xticklabels()]
+    assert ticks == ["face (44 markers)", "lips_jaw (27 markers)"]
+    # error against k: one line per subset, named in the legend, every point as tabulated
+    (err_ax,) = [ax for ax in data_axes if "error" in ax.get_ylabel()]
+    legend = [t.get_text() for t in err_ax.get_legend().get_texts()]
+    assert legend == ["face (44 markers)", "lips_jaw (27 markers)"]
+    for line, (_, g) in zip(err_ax.get_lines(), table.groupby("marker_subset"), strict=True):
+        np.testing.assert_allclose(line.get_ydata(), g.sort_values("k")[
+            "heldout_mean_abs_error_mm"])
+    assert [t.get_text() for t in err_ax.get_xticklabels()] == ["5", "10"]
+    assert "dataset grid_t1" in fig.get_suptitle()
+
+
+def test_sweep_summary_keeps_points_apart_when_an_unused_axis_changes_the_value():
+    from facemotion.plots.cross_subject import plot_sweep_summary
+
+    table = _sweep_table()
+    table.loc[table["k"] == 10, "epsilon_rank"] += 1  # rank should not depend on k: keep both
+    fig = plot_sweep_summary(table)
+    values = np.concatenate([ln.get_ydata() for ax in fig.axes if ax.get_ylabel() ==
+                             "epsilon-rank" for ln in ax.get_lines()])
+    assert sorted(values.tolist()) == [5, 6, 6, 7]

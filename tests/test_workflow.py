@@ -70,8 +70,14 @@ def test_outputs_exist_with_sidecars(smoke_runs):
             digest = hashlib.sha256(tsv.read_bytes()).hexdigest()
             assert meta["outputs"][0]["sha256"] == digest
         for png in (res / ds).rglob("*.png"):
-            assert png.with_suffix(".pdf").is_file()
+            # figures.formats defaults to PNG only
+            assert not png.with_suffix(".pdf").exists() and not png.with_suffix(".svg").exists()
             assert png.with_name(png.stem + ".meta.json").is_file()
+        # the animation: MP4 by default, and a page that plays it in the report
+        mp4 = res / ds / "anim" / "heldout.mp4"
+        assert mp4.read_bytes()[4:8] == b"ftyp"
+        page = (res / ds / "anim" / "heldout_page.html").read_text()
+        assert 'src="data:video/mp4;base64,' in page
     table = pd.read_csv(res / "tables" / "selected_markers.tsv", sep="\t", dtype=str)
     assert list(table.columns) == ["order", "S1", "S2a"]
     manifest = pd.read_csv(res / "manifest.tsv", sep="\t", dtype=str)
@@ -97,12 +103,26 @@ def test_nothing_to_do_on_rerun_and_param_change_reruns_only_dependents(smoke_ru
     assert "load_dataset" not in out and "simulate_subject" not in out
 
 
+def test_figure_formats_setting_adds_vector_files(smoke_runs):
+    a, _ = smoke_runs
+    proc = run_snakemake(a, "-n", "--quiet", "rules",
+                         extra_config="figures:\n  formats: [png, svg]\n")
+    out = proc.stdout + proc.stderr
+    # every rule that draws a figure reruns for its new SVG files
+    for rule in ("rank_markers", "fit_regions", "evaluate_heldout", "animate_heldout",
+                 "tabulate_selection", "load_dataset", "fit_lip_model"):
+        assert rule in out, rule
+    proc = run_snakemake(a, "-n", extra_config="figures:\n  formats: [svg]\n", check=False)
+    assert proc.returncode != 0 and "formats" in proc.stdout + proc.stderr
+
+
 def test_report_builds_with_expected_entries(smoke_runs):
     a, _ = smoke_runs
     run_snakemake(a, "--report", "results/report.zip")
     names = zipfile.ZipFile(a / "results" / "report.zip").namelist()
     for expected in ("r_values.png", "sentence_sweep_plot.png", "regions_k4.png",
-                     "error_curve_plot.png", "mesh.png", "reconstruction.tsv"):
+                     "error_curve_plot.png", "mesh.png", "reconstruction.tsv",
+                     "heldout_page.html", "heldout_still.png"):
         assert any(n.endswith(expected) for n in names), expected
 
 

@@ -16,6 +16,8 @@ the talker's right is on the viewer's left.
 
 from __future__ import annotations
 
+import itertools
+import math
 import os
 import tempfile
 from collections.abc import Iterable, Iterator, Sequence
@@ -43,7 +45,7 @@ from facemotion.plots.facemap import (
 )
 
 SURFACE_CMAP = "YlOrBr"  # colour-blind-safe sequential map for |displacement|, light at 0
-FIGSIZE = (8.0, 4.2)  # inches; at DPI 100 -> 800 x 420 pixels (even, as libx264 needs)
+FIGSIZE = (8.0, 4.6)  # inches; at DPI 100 -> 800 x 460 pixels (even, as libx264 needs)
 DPI = 100
 VIEW = (14.0, -72.0)  # elevation, azimuth (degrees): front, slightly above and to the left
 FORMATS = ("gif", "mp4")
@@ -70,19 +72,29 @@ def face_surface(neutral, displacement, grid_n: int = 30
 
 
 class _SurfaceInterpolator:
-    """face_surface with the triangulation and grid computed once (same result, faster)."""
+    """face_surface as one fixed linear map from marker values to grid values.
+
+    The Clough-Tocher interpolant on a fixed triangulation is linear in the values (its
+    gradient estimate solves a linear system, iterated to a relative tolerance of 1e-6), so
+    interpolating the n unit vectors once gives weights W (grid, grid, n) and every frame is
+    W @ values: the same surface as face_surface (to its own 1e-6 relative tolerance), at a
+    matrix product a frame.
+    """
 
     def __init__(self, neutral: np.ndarray, grid_n: int) -> None:
         xy = neutral[:, :2]
-        self.tri = Delaunay(xy)
         self.gx, self.gy = face_grid(xy, grid_n)
+        n = len(neutral)
+        # tight tolerance: the unit vectors' gradients converge to well below a micrometre
+        f = CloughTocher2DInterpolator(Delaunay(xy), np.eye(n), fill_value=np.nan, tol=1e-10,
+                                       maxiter=5000)
+        self.W = f(self.gx, self.gy)  # (grid_n, grid_n, n), NaN outside the hull
         self.neutral = neutral
 
     def __call__(self, displacement: np.ndarray) -> np.ndarray:
         """(grid_n, grid_n, 4): X, Y, Z and the interpolated |displacement|."""
         values = np.concatenate([self.neutral + displacement, displacement], axis=1)
-        f = CloughTocher2DInterpolator(self.tri, values, fill_value=np.nan)
-        v = f(self.gx, self.gy)
+        v = self.W @ values
         return np.concatenate([v[..., :3], np.linalg.norm(v[..., 3:], axis=-1)[..., None]],
                               axis=-1)
 
@@ -127,25 +139,28 @@ class _Renderer:
         self.norm = Normalize(0.0, vmax)
         self.cmap = colormaps[SURFACE_CMAP]
         k = len(main_idx)
-        titles = ("measured", f"model from k = {k} main markers")
+        titles = ("measured", f"model from the k = {k} main markers (red)")
         self.axes, self.polys, self.dots, self.mains = [], [], [], []
         (xl, yl, zl) = limits
         for p in range(2):
-            ax = self.fig.add_axes((0.0 + 0.44 * p, 0.0, 0.46, 0.9), projection="3d",
+            # panels kept clear of the figure's edges so the axis labels are not cut off
+            ax = self.fig.add_axes((0.01 + 0.44 * p, 0.03, 0.44, 0.86), projection="3d",
                                    computed_zorder=False)
-            ax.set_title(titles[p], fontsize=10, pad=0)
+            ax.set_title(titles[p], fontsize=10, pad=2)
             ax.view_init(elev=view[0], azim=view[1])
             ax.set_xlim(*xl)
             ax.set_ylim(-zl[1], -zl[0])
             ax.set_zlim(*yl)
             ax.set_box_aspect((xl[1] - xl[0], zl[1] - zl[0], yl[1] - yl[0]))
             if axes_visible:
-                ax.set_xlabel("x (mm)", fontsize=7, labelpad=-8)
-                ax.set_ylabel("z (mm)", fontsize=7, labelpad=-8)
-                ax.set_zlabel("y (mm)", fontsize=7, labelpad=-8)
+                ax.set_xlabel("x (mm)", fontsize=7, labelpad=-6)
+                ax.set_ylabel("z (mm)", fontsize=7, labelpad=-6)
+                ax.set_zlabel("y (mm)", fontsize=7, labelpad=-6)
                 ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{-v + 0.0:g}"))
-                for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
-                    axis.set_major_locator(MaxNLocator(4))
+                ax.xaxis.set_major_locator(MaxNLocator(4))
+                ax.zaxis.set_major_locator(MaxNLocator(4))
+                # depth is seen nearly end-on: two ticks, or their labels collide
+                ax.yaxis.set_major_locator(MaxNLocator(2))
                 ax.tick_params(labelsize=6, pad=-3)
             else:
                 ax.set_axis_off()
@@ -164,7 +179,7 @@ class _Renderer:
         cb = self.fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), cax=cax)
         cb.set_label("|displacement| (mm)", fontsize=8)
         cb.ax.tick_params(labelsize=7)
-        self.suptitle = self.fig.suptitle("", fontsize=10, y=0.98)
+        self.suptitle = self.fig.suptitle("", fontsize=9.5, y=0.985, va="top")
         self.dynamic = [*self.polys, *self.dots, *self.mains, self.suptitle]
         for a in self.dynamic:
             a.set_visible(False)
@@ -222,54 +237,97 @@ def _vmax(*motions: np.ndarray) -> float:
     return max(v, 0.5)
 
 
-def iter_frames(neutral, measured, model, labels: Sequence[str], main_labels: Sequence[str],
-                fps: float, grid_n: int = 30, t0: float = 0.0, title: str = "",
-                axes_visible: bool = True) -> Iterator[np.ndarray]:
-    """Generator form of :func:`render_frames` (one frame in memory at a time)."""
-    neutral, measured, model, labels, main_idx = _check_motion(neutral, measured, model,
-                                                               labels, main_labels)
+class FaceAnimation:
+    """Frames and stills of one animation (measured face beside the model), all drawn by one
+    renderer with the colour scale and axis limits of the whole motion.
+
+    neutral (n, 3) mm; measured and model (T, n, 3) displacements from neutral. The figure is
+    built and its static parts rendered once; each frame updates the surfaces, markers and
+    caption and blits them onto that background (Agg buffer), so frames cost a fraction of a
+    full draw and a still of any frame reuses the same figure.
+    """
+
+    def __init__(self, neutral, measured, model, labels: Sequence[str],
+                 main_labels: Sequence[str], grid_n: int = 30, axes_visible: bool = True):
+        neutral, measured, model, labels, main_idx = _check_motion(neutral, measured, model,
+                                                                   labels, main_labels)
+        self.measured, self.model = measured, model
+        self._r = _Renderer(neutral, labels, main_idx, grid_n, _vmax(measured, model),
+                            _limits(neutral, measured, model), axes_visible=axes_visible)
+
+    def __len__(self) -> int:
+        return self.measured.shape[0]
+
+    def frame(self, i: int, caption: str) -> np.ndarray:
+        """Frame i as an (H, W, 3) uint8 RGB array."""
+        self._r.draw(self.measured[i], self.model[i], caption)
+        return self._r.rgb()
+
+    def frames(self, captions: Sequence[str]) -> Iterator[np.ndarray]:
+        """All frames in order (one in memory at a time), one caption each."""
+        if len(captions) != len(self):
+            raise InputError(f"animation: {len(captions)} captions for {len(self)} frames")
+        for i, c in enumerate(captions):
+            yield self.frame(i, c)
+
+    def still(self, i: int, caption: str) -> Figure:
+        """Frame i as a Figure (for a PNG/PDF still); draw no frames after taking it."""
+        self._r.draw(self.measured[i], self.model[i], caption)
+        return self._r.fig
+
+
+def _time_captions(n: int, fps: float, t0: float, title: str) -> list[str]:
     if not fps > 0:
         raise InputError(f"animation: fps must be positive, got {fps}")
-    r = _Renderer(neutral, labels, main_idx, grid_n, _vmax(measured, model),
-                  _limits(neutral, measured, model), axes_visible=axes_visible)
     prefix = f"{title}  " if title else ""
-    for i in range(measured.shape[0]):
-        r.draw(measured[i], model[i], f"{prefix}t = {t0 + i / fps:6.3f} s")
-        yield r.rgb()
+    return [f"{prefix}t = {t0 + i / fps:6.3f} s" for i in range(n)]
+
+
+def iter_frames(neutral, measured, model, labels: Sequence[str], main_labels: Sequence[str],
+                fps: float, grid_n: int = 30, t0: float = 0.0, title: str = "",
+                axes_visible: bool = True, captions: Sequence[str] | None = None
+                ) -> Iterator[np.ndarray]:
+    """Generator form of :func:`render_frames` (one frame in memory at a time)."""
+    anim = FaceAnimation(neutral, measured, model, labels, main_labels, grid_n=grid_n,
+                         axes_visible=axes_visible)
+    if captions is None:
+        captions = _time_captions(len(anim), fps, t0, title)
+    yield from anim.frames(captions)
 
 
 def render_frames(neutral, measured, model, labels: Sequence[str], main_labels: Sequence[str],
                   fps: float, grid_n: int = 30, t0: float = 0.0, title: str = "",
-                  axes_visible: bool = True) -> list[np.ndarray]:
+                  axes_visible: bool = True, captions: Sequence[str] | None = None
+                  ) -> list[np.ndarray]:
     """Render frames of the measured face beside the face predicted from the main markers.
 
     neutral (n, 3) mm; measured and model (T, n, 3) displacements from neutral (already
     subsampled to the output rate ``fps``, which only sets the time stamps). Main markers are
     drawn in red. Colour is |displacement| (mm) on one fixed scale (99th percentile of both);
-    axis limits and view are fixed for all frames. Returns T RGB uint8 arrays (H, W, 3).
+    axis limits and view are fixed for all frames. Each frame's caption is ``captions[i]``
+    (default: ``title`` and the time). Returns T RGB uint8 arrays (H, W, 3).
     """
     return list(iter_frames(neutral, measured, model, labels, main_labels, fps, grid_n=grid_n,
-                            t0=t0, title=title, axes_visible=axes_visible))
+                            t0=t0, title=title, axes_visible=axes_visible, captions=captions))
 
 
 def still_frame(neutral, measured, model, labels: Sequence[str], main_labels: Sequence[str],
                 grid_n: int = 30, title: str = "") -> Figure:
     """One frame (measured and model displacements (n, 3)) as a Figure, for the PNG still."""
-    neutral, measured, model, labels, main_idx = _check_motion(neutral, measured, model,
-                                                               labels, main_labels)
-    r = _Renderer(neutral, labels, main_idx, grid_n, _vmax(measured, model),
-                  _limits(neutral, measured, model))
-    r.draw(measured[0], model[0], title or "Measured face and face predicted from the main "
-           "markers (red)")
-    return r.fig
+    anim = FaceAnimation(neutral, np.asarray(measured, dtype=float)[None],
+                         np.asarray(model, dtype=float)[None], labels, main_labels,
+                         grid_n=grid_n)
+    return anim.still(0, title or "Measured face and face predicted from the main markers "
+                      "(red)")
 
 
 def frame_indices(n_frames: int, rate: float, fps: float) -> tuple[np.ndarray, float]:
-    """Subsample a recording at ``rate`` Hz to about ``fps``: frame indices and the exact
-    output rate (rate / step, step a whole number of frames)."""
+    """Subsample a recording at ``rate`` Hz to at most ``fps``: frame indices and the exact
+    output rate (rate / step, step the smallest whole number of frames that keeps the output
+    rate at or below ``fps``)."""
     if not (rate > 0 and fps > 0):
         raise InputError(f"animation: rate ({rate}) and fps ({fps}) must be positive")
-    step = max(1, int(round(rate / fps)))
+    step = max(1, math.ceil(rate / fps - 1e-9))
     return np.arange(0, n_frames, step), rate / step
 
 
@@ -304,7 +362,7 @@ def _write_gif(path: str, frames: list[np.ndarray], fps: float) -> None:
                    disposal=1)
 
 
-def _write_mp4(path: str, frames: list[np.ndarray], fps: float, crf: int) -> None:
+def _write_mp4(path: str, frames: Iterable[np.ndarray], fps: float, crf: int) -> None:
     import imageio.v2 as imageio
 
     params = ["-fflags", "+bitexact", "-flags:v", "+bitexact", "-map_metadata", "-1",
@@ -340,15 +398,17 @@ def write_animation(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: 
         raise InputError(f"{path}: animation format must be one of {FORMATS} (by suffix)")
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"{path}: fps must be positive, got {fps}")
-    frames = list(_as_frames(frames))
-    if not frames:
+    frames = _as_frames(frames)
+    first = next(frames, None)
+    if first is None:
         raise InputError(f"{path}: no frames to write")
+    frames = itertools.chain([first], frames)  # streamed to the MP4 encoder
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=f".{fmt}")
     os.close(fd)
     try:
         if fmt == "gif":
-            _write_gif(tmp, frames, fps)
+            _write_gif(tmp, list(frames), fps)
         else:
             _write_mp4(tmp, frames, fps, crf)
         os.replace(tmp, path)
@@ -357,3 +417,30 @@ def write_animation(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: 
             os.unlink(tmp)
         raise
     return path
+
+
+def animation_page(path: str | os.PathLike, title: str, caption: str = "") -> bytes:
+    """A small self-contained HTML page that plays the animation at ``path`` (MP4 in a looping
+    <video>, GIF in an <img>), the file embedded as a data URI, for the Snakemake report
+    (which shows HTML inline but offers other files only as downloads)."""
+    import base64
+    import html
+
+    path = Path(path)
+    fmt = path.suffix.lower().lstrip(".")
+    if fmt not in FORMATS:
+        raise InputError(f"{path}: animation format must be one of {FORMATS} (by suffix)")
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    if fmt == "mp4":
+        media = (f'<video controls loop autoplay muted playsinline style="max-width:100%" '
+                 f'src="data:video/mp4;base64,{data}"></video>')
+    else:
+        media = f'<img style="max-width:100%" alt="animation" src="data:image/gif;base64,{data}">'
+    text = (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+            f"<title>{html.escape(title)}</title></head>\n"
+            f'<body style="margin:0;font-family:sans-serif">\n<p style="margin:4px 8px">'
+            f"{html.escape(title)}</p>\n{media}\n"
+            + (f'<p style="margin:4px 8px;font-size:90%">{html.escape(caption)}</p>\n'
+               if caption else "")
+            + "</body></html>\n")
+    return text.encode("utf-8")

@@ -1,6 +1,7 @@
 """Provenance sidecars and deterministic, atomic writing of tables and figures.
 
-Every table (TSV) and figure (PNG plus PDF) the study writes gets a ``<stem>.meta.json``
+Every table (TSV) and figure (PNG, plus PDF or SVG when the ``figures.formats`` setting asks
+for them) the study writes gets a ``<stem>.meta.json``
 sidecar: the output's schema id and version, the package version, the git commit of the code,
 the configuration values used and checksums of the inputs and of the outputs themselves.
 Nothing in a sidecar depends on the clock or on the machine, so a rerun with the same inputs
@@ -66,6 +67,22 @@ TABLE_SCHEMAS: dict[str, tuple[str, tuple[str, ...]]] = {
     "manifest": ("1", ("path", "sha256", "schema_id", "schema_version", "sidecar")),
 }
 FIGURE_SCHEMA_VERSION = "1"
+FIGURE_FORMATS = ("png", "pdf", "svg")
+#: PNG resolution. 120 dpi: a 7-inch figure is 840 px, about the width the Snakemake report
+#: shows a figure at without scaling; vector formats do not depend on it.
+FIGURE_DPI = 120
+
+
+def figure_paths(stem: str | os.PathLike, formats: Iterable[str] = ("png",)) -> list[str]:
+    """``stem`` with each figure format's suffix, PNG first (the ``figures.formats`` setting:
+    PNG always, for looking and for the report; PDF or SVG for papers when asked for)."""
+    formats = list(formats)
+    bad = [f for f in formats if f not in FIGURE_FORMATS]
+    if bad:
+        raise InputError(f"setting figures.formats: unknown format(s) {bad} "
+                         f"(one of {list(FIGURE_FORMATS)})")
+    ordered = ["png"] + [f for f in FIGURE_FORMATS if f in formats and f != "png"]
+    return [f"{stem}.{f}" for f in ordered]
 
 
 def sha256_file(path: str | os.PathLike) -> str:
@@ -177,7 +194,7 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, schema_id: str,
     return _write_sidecar(prov, schema_id, version, [str(path)])
 
 
-def figure_bytes(fig, fmt: str, dpi: int = 120) -> bytes:
+def figure_bytes(fig, fmt: str, dpi: int = FIGURE_DPI) -> bytes:
     """Render a matplotlib figure with all time- and machine-dependent metadata removed."""
     import matplotlib as mpl
 
@@ -198,7 +215,8 @@ def figure_bytes(fig, fmt: str, dpi: int = 120) -> bytes:
 
 def save_figure(fig, paths: Iterable[str | os.PathLike], schema_id: str,
                 prov: Provenance) -> Path:
-    """Save one figure in every format named by ``paths`` (by suffix), plus one sidecar."""
+    """Save one figure in every format named by ``paths`` (by suffix: png, pdf or svg; the
+    rules name the formats of the ``figures.formats`` setting), plus one sidecar."""
     paths = [str(p) for p in paths]
     if not paths:
         raise ValueError("save_figure needs at least one path")

@@ -32,6 +32,15 @@ def _flatten(files) -> list[str]:
     return out
 
 
+def figure_paths(output, key: str = "png") -> list[str]:
+    """A figure's files from a rule's outputs: the PNG named ``key`` (``png``, ``traj_png``)
+    and the other formats of the ``figures.formats`` setting, named ``key`` with ``more`` for
+    ``png`` (``more``, ``traj_more``; declared with ``fig_more()`` in common.smk)."""
+    more = key[: -len("png")] + "more"
+    extra = list(output[more]) if more in output.keys() else []
+    return [str(output[key]), *map(str, extra)]
+
+
 def provenance_for(sm, extra_inputs=()) -> Provenance:
     """Provenance of a Snakemake job: rule name, its params (the config used), its inputs."""
     params = {k: v for k, v in sm.params.items()} if hasattr(sm.params, "items") else {}

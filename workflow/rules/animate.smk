@@ -8,13 +8,20 @@ rule animate_heldout:
     output:
         anim=f"results/{{dataset}}/anim/heldout.{config['animation']['format']}",
         anim_meta="results/{dataset}/anim/heldout.meta.json",
+        page=report(
+            "results/{dataset}/anim/heldout_page.html",
+            caption="../report/animation_page.rst",
+            category="5. Animation",
+            subcategory="{dataset}",
+        ),
+        page_meta="results/{dataset}/anim/heldout_page.meta.json",
         png=report(
             "results/{dataset}/anim/heldout_still.png",
             caption="../report/animation.rst",
             category="5. Animation",
             subcategory="{dataset}",
         ),
-        pdf="results/{dataset}/anim/heldout_still.pdf",
+        more=fig_more("results/{dataset}/anim/heldout_still"),
         fig_meta="results/{dataset}/anim/heldout_still.meta.json",
     log:
         "results/logs/animate_heldout/{dataset}.log",

@@ -112,9 +112,20 @@ def dataset_params(dataset):
     }
 
 
+from facemotion.provenance import figure_paths
+
+FIGURE_FORMATS = config["figures"]["formats"]
+
+
 def fig(path):
-    """A figure's files: PNG for looking, PDF for papers."""
-    return [f"{path}.png", f"{path}.pdf"]
+    """A figure's files: PNG for looking (and the report), PDF/SVG for papers if asked for
+    (setting figures.formats)."""
+    return figure_paths(path, FIGURE_FORMATS)
+
+
+def fig_more(path):
+    """A figure's files other than its PNG (the rule's `more` outputs)."""
+    return fig(path)[1:]
 
 
 def meta(path):

@@ -17,7 +17,7 @@ rule load_dataset:
             category="1. Data",
             subcategory="{dataset}",
         ),
-        gap_pdf="results/{dataset}/data/gaps.pdf",
+        gap_more=fig_more("results/{dataset}/data/gaps"),
         gap_fig_meta="results/{dataset}/data/gaps.meta.json",
     log:
         "results/logs/load_dataset/{dataset}.log",

@@ -14,7 +14,7 @@ rule evaluate_heldout:
             category="4. Held-out error",
             subcategory="{dataset}",
         ),
-        pdf="results/{dataset}/eval/error_curve_plot.pdf",
+        more=fig_more("results/{dataset}/eval/error_curve_plot"),
         fig_meta="results/{dataset}/eval/error_curve_plot.meta.json",
         traj="results/{dataset}/eval/trajectory_errors.tsv",
         traj_meta="results/{dataset}/eval/trajectory_errors.meta.json",
@@ -24,7 +24,7 @@ rule evaluate_heldout:
             category="4. Held-out error",
             subcategory="{dataset}",
         ),
-        traj_pdf="results/{dataset}/eval/trajectory.pdf",
+        traj_more=fig_more("results/{dataset}/eval/trajectory"),
         traj_fig_meta="results/{dataset}/eval/trajectory.meta.json",
     log:
         "results/logs/evaluate_heldout/{dataset}.log",

@@ -14,7 +14,7 @@ rule fit_regions:
             category="3. Regions",
             subcategory="{dataset}",
         ),
-        pdf="results/{dataset}/fit/regions_k{k}.pdf",
+        more=fig_more("results/{dataset}/fit/regions_k{k}"),
         fig_meta="results/{dataset}/fit/regions_k{k}.meta.json",
         orth_png=report(
             "results/{dataset}/fit/orthogonal_k{k}.png",
@@ -22,7 +22,7 @@ rule fit_regions:
             category="3. Regions",
             subcategory="{dataset}",
         ),
-        orth_pdf="results/{dataset}/fit/orthogonal_k{k}.pdf",
+        orth_more=fig_more("results/{dataset}/fit/orthogonal_k{k}"),
         orth_meta="results/{dataset}/fit/orthogonal_k{k}.meta.json",
     log:
         "results/logs/fit_regions/{dataset}_k{k}.log",

@@ -16,7 +16,7 @@ rule rank_markers:
             category="2. Rank",
             subcategory="{dataset}",
         ),
-        pdf="results/{dataset}/qr/r_values_plot.pdf",
+        more=fig_more("results/{dataset}/qr/r_values_plot"),
         fig_meta="results/{dataset}/qr/r_values_plot.meta.json",
     log:
         "results/logs/rank_markers/{dataset}.log",
@@ -73,7 +73,7 @@ rule sweep_sentences:
             category="2. Rank",
             subcategory="{dataset}",
         ),
-        pdf="results/{dataset}/qr/sentence_sweep_plot.pdf",
+        more=fig_more("results/{dataset}/qr/sentence_sweep_plot"),
         fig_meta="results/{dataset}/qr/sentence_sweep_plot.meta.json",
     log:
         "results/logs/sweep_sentences/{dataset}.log",

@@ -39,7 +39,7 @@ rule summarise_sweep:
             caption="../report/sweep.rst",
             category="0. Summary",
         ),
-        pdf="results/figures/sweep_{sweep}.pdf",
+        more=fig_more("results/figures/sweep_{sweep}"),
         fig_meta="results/figures/sweep_{sweep}.meta.json",
     log:
         "results/logs/summarise_sweep/{sweep}.log",
@@ -67,7 +67,7 @@ rule summarise_talkers:
             caption="../report/talkers.rst",
             category="0. Summary",
         ),
-        pdf="results/figures/talkers.pdf",
+        more=fig_more("results/figures/talkers"),
         fig_meta="results/figures/talkers.meta.json",
     log:
         "results/logs/summarise_talkers.log",

@@ -13,7 +13,7 @@ rule tabulate_selection:
             caption="../report/selected_markers.rst",
             category="0. Summary",
         ),
-        sel_pdf="results/figures/selected_markers.pdf",
+        sel_more=fig_more("results/figures/selected_markers"),
         sel_meta="results/figures/selected_markers.meta.json",
         summary="results/tables/rank_summary.tsv",
         summary_meta="results/tables/rank_summary.meta.json",
@@ -22,7 +22,7 @@ rule tabulate_selection:
             caption="../report/r_values_all.rst",
             category="0. Summary",
         ),
-        pdf="results/figures/r_values.pdf",
+        more=fig_more("results/figures/r_values"),
         fig_meta="results/figures/r_values.meta.json",
     log:
         "results/logs/tabulate_selection.log",
@@ -49,7 +49,7 @@ rule plot_error_curves:
             caption="../report/error_curves_all.rst",
             category="0. Summary",
         ),
-        pdf="results/figures/error_curves.pdf",
+        more=fig_more("results/figures/error_curves"),
         fig_meta="results/figures/error_curves.meta.json",
     log:
         "results/logs/plot_error_curves.log",

@@ -17,20 +17,50 @@ _EXTRA = {"median_abs_error_mm": ("median", "--"), "rms_error_mm": ("rms", "-.")
           "max_abs_error_mm": ("max", ":")}
 
 
-def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame]) -> Figure:
+def without_all_main(df: pd.DataFrame, n_markers: int | None = None
+                     ) -> tuple[pd.DataFrame, int | None]:
+    """The curve without its k = n row (every marker main: no secondary marker is left, so
+    the error is undefined, not 0). With ``n_markers`` given, rows with k >= n are dropped;
+    otherwise the table's own contract (``prediction.error_curve`` appends k = n with all
+    errors exactly 0) identifies it: the largest k, if all its error columns are 0.
+    Returns the rows kept and the n dropped (None if nothing was dropped)."""
+    df = df.sort_values("k")
+    if n_markers is not None:
+        keep = df["k"] < int(n_markers)
+        return df[keep], (int(n_markers) if (~keep).any() else None)
+    if df.empty:
+        return df, None
+    last = df.iloc[-1]
+    cols = [c for c in ("mean_abs_error_mm", "rel_error_per_marker", *_EXTRA,
+                        "rel_error_pooled") if c in df.columns]
+    if all(float(last[c]) == 0.0 for c in cols):
+        return df.iloc[:-1], int(last["k"])
+    return df, None
+
+
+def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
+                      n_markers: Mapping[str, int] | None = None) -> Figure:
     """Paper Fig. 10, two panels against k (number of main markers): left (Fig. 10 top) the
     held-out mean absolute error (mm; optional median / rms / max columns as thinner broken
     lines of the same colour), right (Fig. 10 bottom) the relative error averaged over markers
     (``rel_error_per_marker``, a fraction shown in %; the pooled ratio ``rel_error_pooled``, when
-    present, as a thin dotted line). Datasets overlaid."""
+    present, as a thin dotted line). Datasets overlaid.
+
+    k = n (no secondary marker left) is not drawn (see :func:`without_all_main`); notes under
+    the panels say so, and list any k < n with exactly zero error (not on the log axis).
+    """
     require_tables(df_by_dataset, ("k", "mean_abs_error_mm", "rel_error_per_marker"),
                    "error curves")
-    fig = Figure(figsize=(10.0, 4.2), layout="constrained")
+    fig = Figure(figsize=(10.0, 4.4), layout="constrained")
     ax_abs, ax_rel = fig.subplots(1, 2)
     extras_used = []
     zero_k: list[str] = []
+    all_main: dict[int, list[str]] = {}
+    pooled = False
     for d, (name, df) in enumerate(df_by_dataset.items()):
-        df = df.sort_values("k")
+        df, n_dropped = without_all_main(df, (n_markers or {}).get(name))
+        if n_dropped is not None:
+            all_main.setdefault(n_dropped, []).append(str(name))
         c, m = colour(d), MARKERS[d % len(MARKERS)]
         pos = df["mean_abs_error_mm"].where(df["mean_abs_error_mm"] > 0)  # log axis
         ax_abs.plot(df["k"], pos, color=c, marker=m, ms=3.5, lw=1.4, label=name)
@@ -43,13 +73,20 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame]) -> Figure:
                     label=name)
         if "rel_error_pooled" in df.columns:
             ax_rel.plot(df["k"], df["rel_error_pooled"], color=c, ls=":", lw=0.9)
+            pooled = True
         zk = df.loc[df["mean_abs_error_mm"] <= 0, "k"]
         if len(zk):
             zero_k.append(f"{name}: k = {', '.join(str(int(v)) for v in zk)}")
     ax_abs.set_yscale("log")
+    notes = []
+    if all_main:
+        notes.append("k = n not drawn (every marker is main, none is left to predict: the "
+                     "error is undefined): " + "; ".join(
+                         f"n = {n} ({', '.join(names)})" for n, names in all_main.items()))
     if zero_k:
-        ax_abs.text(0.02, 0.02, "zero error, not on the log axis: " + "; ".join(zero_k),
-                    transform=ax_abs.transAxes, fontsize=7, color="0.3", va="bottom")
+        notes.append("zero error, not on the log axis: " + "; ".join(zero_k))
+    if notes:
+        fig.supxlabel("\n".join(notes), fontsize=7.5, color="0.3")
     ax_abs.set(xlabel="k (number of main markers)",
                ylabel="held-out 3-D error (mm, log scale)",
                title="Absolute error (paper Fig. 10 top)")
@@ -58,7 +95,7 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame]) -> Figure:
     ax_rel.set_ylim(bottom=0)
     ax_rel.set(xlabel="k (number of main markers)",
                ylabel="relative error, mean over markers of\nmean |error| / mean |displacement|",
-               title="Relative error (paper Fig. 10 bottom; dotted: pooled)")
+               title="Relative error (paper Fig. 10 bottom)")
     for ax in (ax_abs, ax_rel):
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(True, which="major", alpha=0.3)
@@ -68,7 +105,11 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame]) -> Figure:
               for c in extras_used]
     ax_abs.legend(handles=handles + style, labels=names + [h.get_label() for h in style],
                   fontsize=8)
-    ax_rel.legend(fontsize=8)
+    handles, names = ax_rel.get_legend_handles_labels()
+    if pooled:
+        handles.append(Line2D([], [], color="0.3", lw=0.9, ls=":"))
+        names.append("pooled: sum |error| / sum |displacement|")
+    ax_rel.legend(handles=handles, labels=names, fontsize=8)
     fig.suptitle("Held-out prediction error of the secondary markers from k main markers")
     return fig
 

@@ -9,7 +9,13 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from facemotion.plots.facemap import HALO
-from facemotion.plots.style import MARKERS, colour, plain_log_labels, require_tables
+from facemotion.plots.style import (
+    MARKERS,
+    colour,
+    keep_legible,
+    plain_log_labels,
+    require_tables,
+)
 
 #: y-axis label per normalisation of R (the ``r_normalisation`` column of r_values.tsv)
 _NORM_LABEL = {
@@ -30,8 +36,11 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     Dashed horizontal lines mark the epsilon tolerances (|r_kk| <= ||R22||_2, so a pivot below
     a line is necessary, not sufficient, for the epsilon-rank to stop before it). Values below
     ``NUMERICAL_ZERO`` times the dataset's largest are listed as numerically zero instead of
-    stretching the log axis. For each dataset the last ``max_annotations`` pivots below
-    ``annotate_below`` mm (the markers best explained by the others) are labelled.
+    stretching the log axis (listed under the axes). For each dataset the last
+    ``max_annotations`` (one if there are more than two datasets) pivots below
+    ``annotate_below`` mm (the markers best explained by the others) are labelled, last
+    first and datasets in turn, as long as a label overlaps no earlier label, the legend or a
+    tolerance label and stays inside the axes; the others are left out rather than piled up.
     """
     require_tables(tables, ("order", "marker", column), "r values")
     fig = Figure(figsize=(7.0, 4.6), layout="constrained")
@@ -39,6 +48,7 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     n_max = 1
     lows = []
     zeros: list[str] = []
+    candidates: list[list[tuple]] = []
     for d, (name, df) in enumerate(tables.items()):
         df = df.sort_values("order")
         order = df["order"].to_numpy(dtype=int)
@@ -47,20 +57,17 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
         n_max = max(n_max, int(order.max()))
         c = colour(d)
         positive = r > NUMERICAL_ZERO * max(float(np.max(r)), 0.0)
-        ax.plot(order, np.where(positive, r, np.nan), marker=MARKERS[d % len(MARKERS)], ms=3.5,
+        ax.plot(order, np.where(positive, r, np.nan), marker=MARKERS[d % len(MARKERS)],
+                ms=3.5 if len(order) <= 100 else 1.5,
                 lw=1.2, color=c, label=f"{name} ({len(order)} markers)")
         if (~positive).any():
             zeros.append(f"{name}: {', '.join(markers[~positive][:8])}"
                          + (" ..." if (~positive).sum() > 8 else ""))
         if positive.any():
             lows.append(float(r[positive].min()))
-        below = np.flatnonzero((r < annotate_below) & positive)[-max_annotations:]
-        for j, i in enumerate(below):
-            ax.annotate(markers[i], (order[i], r[i]),
-                        xytext=(-8 - 16 * (len(below) - 1 - j), -16 - 11 * d),
-                        textcoords="offset points", fontsize=7.5, color=c, ha="center",
-                        path_effects=HALO,
-                        arrowprops={"arrowstyle": "-", "color": c, "lw": 0.6})
+        per_dataset = max_annotations if len(tables) <= 2 else 1
+        below = np.flatnonzero((r < annotate_below) & positive)[-per_dataset:][::-1]
+        candidates.append([(i, order[i], r[i], markers[i], c) for i in below])
     ax.set_yscale("log")
     for t in sorted(tolerances):
         ax.axhline(t, color="0.35", ls="--", lw=0.8, zorder=0)
@@ -68,10 +75,11 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
                     xytext=(3, 2), textcoords="offset points", ha="left", va="bottom",
                     fontsize=7.5, color="0.3")
     if lows:
-        ax.set_ylim(bottom=min(min(lows), min(tolerances, default=1.0)) / 2)
+        # room under the lowest point for the labels of the last pivots
+        ax.set_ylim(bottom=min(min(lows), min(tolerances, default=1.0)) / 4)
     if zeros:
-        ax.text(0.99, 0.02, "numerically 0 (not on the log axis): " + "; ".join(zeros),
-                transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.3")
+        fig.supxlabel("numerically 0 (not on the log axis): " + "; ".join(zeros),
+                      fontsize=7.5, color="0.3")
     ax.set_xlim(0.5, n_max + 0.5)
     ax.set_xlabel("pivot order (marker selected at step i of QR with column pivoting)")
     norms = {str(v) for df in tables.values() if "r_normalisation" in df.columns
@@ -82,5 +90,23 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     ax.set_title("Independent motion of each pivot marker (diagonal of R)")
     ax.grid(True, which="major", alpha=0.3)
     plain_log_labels(ax.yaxis)
-    ax.legend(fontsize=8, loc="upper right")
+    legend = ax.legend(fontsize=8, loc="upper right")
+    # Labels of the last pivots below ``annotate_below``: below-left of a point near the right
+    # edge, above-right of the others (where a falling curve leaves room); datasets in turn;
+    # kept only where legible.
+    texts = []
+    for rank_j in range(max((len(c) for c in candidates), default=0)):
+        for cands in candidates:
+            if rank_j < len(cands):
+                _, x, y, label, c = cands[rank_j]
+                right = x > 0.75 * n_max
+                dy = 7 + 16 * rank_j
+                texts.append(ax.annotate(
+                    label, (x, y), xytext=(-5, -dy) if right else (5, dy),
+                    textcoords="offset points", fontsize=7.5, color=c,
+                    ha="right" if right else "left", va="top" if right else "bottom",
+                    path_effects=HALO,
+                    arrowprops={"arrowstyle": "-", "color": c, "lw": 0.6,
+                                "shrinkA": 0, "shrinkB": 2}))
+    keep_legible(fig, texts, inside=ax, avoid=[legend, *ax.texts[:len(tolerances)]])
     return fig

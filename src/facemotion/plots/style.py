@@ -45,3 +45,32 @@ def plain_log_labels(axis) -> None:
     """Plain numbers (0.5, 1, 2) on a log axis; minor ticks labelled when few decades show."""
     axis.set_major_formatter(_PlainLogFormatter(labelOnlyBase=False))
     axis.set_minor_formatter(_PlainLogFormatter(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
+
+
+def _extent(artist, renderer, pad: float = 1.0):
+    """Window extent of an artist; of an annotation, its text alone (not its arrow)."""
+    from matplotlib.text import Annotation, Text
+
+    if isinstance(artist, Annotation):
+        return Text.get_window_extent(artist, renderer).padded(pad)
+    return artist.get_window_extent(renderer).padded(pad)
+
+
+def keep_legible(fig, texts, inside=None, avoid=()) -> list:
+    """Remove texts that would overlap an earlier one (``texts`` in priority order), stick
+    out of the axes ``inside`` or overlap an artist in ``avoid`` (e.g. the legend), measured
+    from the rendered text extents. Returns the texts kept."""
+    fig.draw_without_rendering()
+    renderer = fig._get_renderer()
+    box = inside.get_window_extent(renderer) if inside is not None else None
+    blocked = [_extent(a, renderer) for a in avoid if a is not None]
+    kept = []
+    for t in texts:
+        e = _extent(t, renderer)
+        if (box is not None and not (box.x0 <= e.x0 and e.x1 <= box.x1 and box.y0 <= e.y0
+                                     and e.y1 <= box.y1)) or any(e.overlaps(b) for b in blocked):
+            t.remove()
+            continue
+        blocked.append(e)
+        kept.append(t)
+    return kept

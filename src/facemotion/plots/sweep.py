@@ -5,6 +5,7 @@ from __future__ import annotations
 import pandas as pd
 from matplotlib import colormaps
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from facemotion.errors import InputError
 from facemotion.plots.style import LINESTYLES, MARKERS, plain_log_labels, require_columns
@@ -38,6 +39,7 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
                 ax.annotate(m, (n, r), xytext=(0, 4), textcoords="offset points", fontsize=6,
                             color=c, ha="center")
     ax.set_xlabel("number of sentences in the displacement matrix")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     if (df["r_rms"] > 0).all():
         ax.set_yscale("log")
         plain_log_labels(ax.yaxis)
