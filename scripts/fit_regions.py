@@ -1,6 +1,7 @@
 """X = R11^-1 R12 for k main markers, region maps and orthogonal-direction maps (Figs. 4-7)."""
 
 from facemotion.displacements import load_displacements
+from facemotion.face_mesh import read_face_mesh
 from facemotion.loading import split_roles
 from facemotion.pivoted_qr import rank_markers
 from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
@@ -18,11 +19,16 @@ def main(sm, log, prov):
     table = X.copy()
     table.insert(0, "main_marker", X.index.astype(str))
     write_table(table, sm.output.table, "coefficients", prov)
-    fig = plot_region_maps(d.neutral, d.labels, X, grid_n=sm.params.grid_n)
+    mesh = read_face_mesh(sm.input.mesh[0], sm.params.mesh_labels) if sm.input.mesh else None
+    if mesh is not None:
+        log.info("maps drawn on the face mesh %s (%d vertices)", sm.input.mesh[0],
+                 len(mesh.vertices))
+    fig = plot_region_maps(d.neutral, d.labels, X, grid_n=sm.params.grid_n, mesh=mesh)
     save_figure(fig, figure_paths(sm.output, "png"), "regions", prov)
     fig = plot_orthogonal_directions(d.neutral, d.labels, ranking.R,
                                      ranking.labels_in_order,
-                                     n_pivots=sm.params.orthogonal_maps)
+                                     n_pivots=sm.params.orthogonal_maps,
+                                     grid_n=sm.params.grid_n, mesh=mesh)
     save_figure(fig, figure_paths(sm.output, "orth_png"), "orthogonal_directions", prov)
 
 

@@ -220,8 +220,12 @@ def save_figure(fig, paths: Iterable[str | os.PathLike], schema_id: str,
     paths = [str(p) for p in paths]
     if not paths:
         raise ValueError("save_figure needs at least one path")
-    for p in paths:
+    for i, p in enumerate(paths):
         atomic_write_bytes(p, figure_bytes(fig, Path(p).suffix.lstrip(".").lower()))
+        if i == 0 and len(paths) > 1 and fig.get_layout_engine() is not None:
+            # the layout (constrained: several passes over every tick label) is the same for
+            # every format: keep the first one's instead of computing it again
+            fig.set_layout_engine("none")
     import matplotlib.pyplot as plt
 
     plt.close(fig)

@@ -85,6 +85,30 @@ with exit_on_error():
     )
 
 
+def _dataset_mesh_path(dataset):
+    spec = (config.get("datasets") or {}).get(dataset) or {}
+    if not spec.get("mesh"):
+        return None
+    return _resolve(str(spec["mesh"]).replace("{shared_data}", str(SHARED_DATA)))
+
+
+for _d in DATASETS:
+    _m = _dataset_mesh_path(_d)
+    if _m is not None and not Path(_m).is_file():
+        raise InputError(f"setting datasets.{_d}.mesh: {_m} is not a file")
+
+
+def dataset_mesh(wildcards):
+    """The face mesh a dataset's maps are drawn on (setting datasets.<id>.mesh), or none."""
+    m = _dataset_mesh_path(wildcards.dataset)
+    return [str(m)] if m is not None else []
+
+
+def dataset_mesh_labels(wildcards):
+    spec = (config.get("datasets") or {}).get(wildcards.dataset) or {}
+    return spec.get("mesh_labels", "L{i:03d}")
+
+
 def dataset_recordings(wildcards):
     return SUBJECTS[DATASETS[wildcards.dataset].subject].recordings
 

@@ -5,6 +5,7 @@ rule fit_regions:
     input:
         npz="results/{dataset}/data/displacements.npz",
         sentences="results/{dataset}/data/sentences.tsv",
+        mesh=dataset_mesh,
     output:
         table="results/{dataset}/fit/coefficients_k{k}.tsv",
         meta="results/{dataset}/fit/coefficients_k{k}.meta.json",
@@ -39,5 +40,6 @@ rule fit_regions:
         method=config["qr"]["method"],
         grid_n=config["fit"]["grid_n"],
         orthogonal_maps=config["fit"]["orthogonal_maps"],
+        mesh_labels=dataset_mesh_labels,
     script:
         "../../scripts/fit_regions.py"

@@ -126,9 +126,10 @@ def draw_field(ax, xy: np.ndarray, values: np.ndarray, norm: Normalize, grid_n: 
 
 
 def draw_markers(ax, xy: np.ndarray, labels: Sequence[str], highlight: Sequence[str] = (),
-                 label_highlight: bool = True, size: float = 6.0) -> None:
-    """Markers as small dots; highlighted ones as larger red dots with their labels."""
-    ax.scatter(xy[:, 0], xy[:, 1], s=size, c=MARKER_COLOUR, linewidths=0, zorder=3)
+                 label_highlight: bool = True, size: float = 6.0, dots: bool = True) -> None:
+    """Markers as small dots (``dots``); highlighted ones as larger red dots with labels."""
+    if dots:
+        ax.scatter(xy[:, 0], xy[:, 1], s=size, c=MARKER_COLOUR, linewidths=0, zorder=3)
     if len(highlight):
         idx = label_index(labels, highlight)
         ax.scatter(xy[idx, 0], xy[idx, 1], s=size * 5, c=MAIN_COLOUR, edgecolors="white",
@@ -138,3 +139,55 @@ def draw_markers(ax, xy: np.ndarray, labels: Sequence[str], highlight: Sequence[
                 ax.annotate(labels[i], xy[i], xytext=(3, 3), textcoords="offset points",
                             fontsize=8, color=MAIN_COLOUR, fontweight="bold", zorder=5,
                             path_effects=HALO)
+
+
+def mesh_values(placed, xy: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Per-vertex values of a placed face mesh: a marker's own value at its vertex; at the
+    other vertices the markers' cubic interpolant (NaN outside the markers' convex hull)."""
+    values = np.asarray(values, dtype=float)
+    out = np.full(len(placed.positions), np.nan)
+    own = placed.marker_index >= 0
+    out[own] = values[placed.marker_index[own]]
+    if (~own).any():
+        out[~own] = interpolate_at(xy, values, placed.positions[~own, :2])
+    return out
+
+
+def visible_triangles(placed, vertex_values: np.ndarray | None = None) -> np.ndarray:
+    """The placed mesh's front-facing triangles with a value at all three vertices, back to
+    front (painter's order by mean depth z)."""
+    from facemotion.face_mesh import front_facing
+
+    tris = front_facing(placed.positions[:, :2], placed.triangles)
+    if vertex_values is not None:
+        tris = tris[np.isfinite(vertex_values[tris]).all(axis=1)]
+    return tris[np.argsort(placed.positions[tris, 2].mean(axis=1), kind="stable")]
+
+
+def draw_mesh_field(ax, placed, xy: np.ndarray, values: np.ndarray, norm: Normalize,
+                    cmap: str = FIELD_CMAP, negative_below: float = 0.0):
+    """Draw a per-marker field on the face mesh's triangles (Gouraud shading between the
+    vertex values, see :func:`mesh_values`), in the style of :func:`draw_field`: grey-scale
+    for the positive part, subregions below ``-negative_below`` hatched and outlined in blue.
+    Returns the artist (for a colorbar)."""
+    from matplotlib.tri import Triangulation
+
+    v = mesh_values(placed, xy, values)
+    tris = visible_triangles(placed, v)
+    if len(tris) == 0:
+        raise InputError("face mesh: no triangle of the mesh lies within the markers")
+    p = placed.positions
+    tri = Triangulation(p[:, 0], p[:, 1], tris)
+    z = np.where(np.isfinite(v), v, 0.0)  # vertices off the drawn triangles are never used
+    art = ax.tripcolor(tri, np.clip(z, norm.vmin, None), shading="gouraud", cmap=cmap,
+                       norm=norm, rasterized=True)
+    ax.triplot(tri, color="0.55", lw=0.15, alpha=0.5, zorder=1.5)
+    level = -abs(negative_below)
+    used = np.unique(tris)
+    if z[used].min() < level:
+        cs = ax.tricontourf(tri, z, levels=[float(z[used].min()) - 1.0, level], colors="none",
+                            hatches=["////"])
+        cs.set_edgecolor(NEGATIVE_COLOUR)
+        cs.set_linewidth(0.0)
+        ax.tricontour(tri, z, levels=[level], colors=NEGATIVE_COLOUR, linewidths=0.8)
+    return art

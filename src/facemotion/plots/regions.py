@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -17,15 +18,22 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from facemotion.errors import InputError
+from facemotion.face_mesh import FaceMesh, place_mesh
 from facemotion.plots.facemap import (
     NEGATIVE_COLOUR,
     as_neutral,
     draw_field,
     draw_markers,
+    draw_mesh_field,
     label_index,
+    mesh_values,
     setup_frontal,
     symmetric_limits,
+    visible_triangles,
 )
+
+#: above this many markers they are not drawn as dots (the mesh or field shows the layout)
+MAX_DOTS = 150
 
 
 def region_coefficients(labels: Sequence[str], X: pd.DataFrame) -> np.ndarray:
@@ -87,48 +95,67 @@ def _grid_shape(n: int, max_cols: int = 5) -> tuple[int, int]:
 
 def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
                   mains: list[str], titles: list[str], grid_n: int, suptitle: str,
-                  cbar_label: str, highlight_all: bool, negative_below: float) -> Figure:
+                  cbar_label: str, highlight_all: bool, negative_below: float,
+                  mesh: FaceMesh | None = None) -> Figure:
     xy = neutral[:, :2]
+    placed = place_mesh(mesh, neutral, labels) if mesh is not None else None
+    extent = xy
+    if placed is not None:
+        drawn = visible_triangles(placed, mesh_values(placed, xy, coeffs[0]))
+        extent = np.vstack([xy, placed.positions[np.unique(drawn), :2]])
+    dots = len(labels) <= MAX_DOTS  # a dense layout: the mesh shows where the points are
     nrows, ncols = _grid_shape(len(mains))
     fig = Figure(figsize=(2.7 * ncols + 1.0, 3.0 * nrows + 0.6), layout="constrained")
     axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False)
                          ).ravel()
     norm = Normalize(vmin=0.0, vmax=symmetric_limits(coeffs, floor=1.0))
-    mesh = None
+    art = None
     thr = negative_below * norm.vmax
     any_negative = bool((coeffs < -thr).any())
     for p, ax in enumerate(axes):
         if p >= len(mains):
             ax.set_axis_off()
             continue
-        mesh = draw_field(ax, xy, coeffs[p], norm, grid_n, negative_below=thr)
+        if placed is not None:
+            art = draw_mesh_field(ax, placed, xy, coeffs[p], norm, negative_below=thr)
+        else:
+            art = draw_field(ax, xy, coeffs[p], norm, grid_n, negative_below=thr)
         others = [m for m in mains if m != mains[p]] if highlight_all else []
         if others:
             io = label_index(labels, others)
             ax.scatter(xy[io, 0], xy[io, 1], s=14, facecolors="none", edgecolors="#EE6677",
                        linewidths=0.7, zorder=4)
-        draw_markers(ax, xy, labels, highlight=[mains[p]])
-        setup_frontal(ax, xy)
+        draw_markers(ax, xy, labels, highlight=[mains[p]], dots=dots)
+        setup_frontal(ax, extent)
         ax.set_title(titles[p], fontsize=10)
         ax.label_outer()
-    if mesh is not None:
-        cb = fig.colorbar(mesh, ax=axes.tolist(), shrink=0.8, extend="neither")
+    if art is not None:
+        cb = fig.colorbar(art, ax=axes.tolist(), shrink=0.8, extend="neither")
         cb.set_label(cbar_label)
     if any_negative:
         fig.legend(handles=[Patch(facecolor="white", edgecolor=NEGATIVE_COLOUR, hatch="////",
                                   label=f"negative: below {-thr:.2g} (values < 0 are white)")],
                    loc="outside lower right", fontsize=8, frameon=False)
+    if placed is not None:
+        suptitle += (f"\non the face mesh {Path(mesh.name).name} ({len(placed.positions)} "
+                     f"vertices, {int((placed.marker_index >= 0).sum())} of them markers; "
+                     "values between markers interpolated on its triangles)")
     fig.suptitle(suptitle)
     return fig
 
 
 def plot_region_maps(neutral, labels: Sequence[str], X: pd.DataFrame,
-                     grid_n: int = 100, negative_below: float = 0.05) -> Figure:
+                     grid_n: int = 100, negative_below: float = 0.05,
+                     mesh: FaceMesh | None = None) -> Figure:
     """Kinematic region of each main marker (paper Figs. 4-7): its fit coefficient for every
     marker (itself 1, other main markers 0, secondary j: X[main, j]) interpolated over the face.
 
     Negative subregions deeper than ``negative_below`` times the colour scale's maximum are
     hatched (shallower ones are estimation noise and would hatch most of the face).
+
+    ``mesh``: a face mesh whose vertex labels are (some of) the markers (e.g. the canonical
+    face model for MediaPipe landmarks): the maps are then drawn on its front-facing
+    triangles, one value per vertex, instead of on a grid over the markers' convex hull.
     """
     neutral, labels = as_neutral(neutral, labels)
     C = region_coefficients(labels, X)
@@ -139,14 +166,16 @@ def plot_region_maps(neutral, labels: Sequence[str], X: pd.DataFrame,
         suptitle=(f"Kinematic regions of the k = {len(mains)} main markers: coefficient of each "
                   "main marker in the prediction of every marker (frontal view)"),
         cbar_label="fit coefficient (main marker = 1)", highlight_all=True,
-        negative_below=negative_below)
+        negative_below=negative_below, mesh=mesh)
 
 
 def plot_orthogonal_directions(neutral, labels: Sequence[str], R: np.ndarray,
                                order_labels: Sequence[str], n_pivots: int = 4,
-                               grid_n: int = 100, negative_below: float = 0.05) -> Figure:
+                               grid_n: int = 100, negative_below: float = 0.05,
+                               mesh: FaceMesh | None = None) -> Figure:
     """How much each marker moves along the first ``n_pivots`` orthogonal directions q_i
-    (rows of R, each divided by its diagonal entry), interpolated over the face."""
+    (rows of R, each divided by its diagonal entry), interpolated over the face (on ``mesh``'s
+    triangles when given, as in :func:`plot_region_maps`)."""
     neutral, labels = as_neutral(neutral, labels)
     C = orthogonal_direction_coefficients(R, order_labels, labels, n_pivots)
     pivots = [str(s) for s in order_labels[: C.shape[0]]]
@@ -156,4 +185,4 @@ def plot_orthogonal_directions(neutral, labels: Sequence[str], R: np.ndarray,
         suptitle=(f"Motion along the first {len(pivots)} orthogonal directions: "
                   "R[i, j] / R[i, i] (earlier pivots are 0)"),
         cbar_label="R[i, j] / R[i, i]", highlight_all=False,
-        negative_below=negative_below)
+        negative_below=negative_below, mesh=mesh)
