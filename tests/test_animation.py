@@ -113,8 +113,11 @@ def test_still_frame_is_a_figure(motion):
 def test_frame_indices():
     idx, fps = frame_indices(361, 120.0, 30.0)
     assert fps == 30.0 and idx[:3].tolist() == [0, 4, 8] and idx[-1] == 360
+    # never faster than asked: 100 Hz to at most 30 fps takes every 4th frame (25 fps)
     idx, fps = frame_indices(10, 100.0, 30.0)
-    assert fps == pytest.approx(100 / 3) and idx.tolist() == [0, 3, 6, 9]
+    assert fps == 25.0 and idx.tolist() == [0, 4, 8]
+    idx, fps = frame_indices(10, 25.0, 30.0)
+    assert fps == 25.0 and idx.tolist() == list(range(10))
 
 
 def test_gif_delays_keep_time():

@@ -283,6 +283,26 @@ def test_gap_raster_draws_exactly_the_flagged_samples(n_markers):
     assert sum(1 for ln in ax.get_lines() if ln.get_xdata()[0] == 1.5) == 1
 
 
+def test_gap_raster_of_a_dense_layout_keeps_the_most_affected_rows():
+    rate, n = 30.0, 2000
+    t = np.arange(200) / rate
+    labels = [f"V{i:04d}" for i in range(n)]
+    missing = np.zeros((200, n), bool)
+    gaps = {j: 1 + (j * 7) % 50 for j in range(0, n, 20)}  # 100 markers with gaps
+    for j, length in gaps.items():
+        missing[50:50 + length, j] = True
+    fig = plot_gaps(t, missing, np.zeros_like(missing), labels, max_rows=40)
+    (ax,) = fig.axes
+    shown = [tick.get_text() for tick in ax.get_yticklabels()]
+    longest = sorted(gaps, key=lambda j: (-gaps[j], j))[:40]
+    assert shown == [labels[j] for j in sorted(longest)]
+    assert "the 40 markers with the most flagged samples are shown, of 100" in ax.get_title()
+    assert fig.get_size_inches()[1] < 10
+    rows = [labels.index(x) for x in shown]
+    np.testing.assert_array_equal(_drawn_mask(ax, "missing", t, 1 / rate, 40), missing[:, rows])
+    _assert_legible(fig, ax)
+
+
 def test_gap_raster_with_nothing_missing():
     t = np.arange(10) / 10.0
     none = np.zeros((10, 50), bool)

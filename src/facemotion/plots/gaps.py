@@ -24,13 +24,15 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=None,
-              max_all: int = 30) -> Figure:
+              max_all: int = 30, max_rows: int = 40) -> Figure:
     """Raster of missing (red) and filled (blue) samples over time, one row per marker.
 
     missing and filled are (frames, markers) bool; a sample that is both is drawn as filled.
     Each run of samples is one bar from the run's first sample time to its last plus one frame
     interval, so a single flagged frame stays visible. With more than ``max_all`` markers only
-    markers with any flagged sample get a row; the figure says how many were left out.
+    markers with any flagged sample get a row, and at most ``max_rows`` of them (those with
+    the most flagged samples, in label order), so the rows stay legible with thousands of
+    markers; the figure says how many were left out (all are in the gap report table).
     """
     t = np.asarray(time_s, dtype=float)
     missing = np.asarray(missing, dtype=bool)
@@ -47,6 +49,11 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
         show = np.flatnonzero(any_flag)
     else:
         show = np.arange(len(labels))
+    n_flagged_shown = show.size
+    if show.size > max_rows:
+        counts = flagged[:, show].sum(axis=0)
+        top = np.argsort(-counts, kind="stable")[:max_rows]
+        show = np.sort(show[top])
     hidden = len(labels) - show.size
     nrows = max(show.size, 1)
     fig = Figure(figsize=(10.0, min(2.2 + 0.16 * nrows, 14.0)), layout="constrained")
@@ -73,7 +80,11 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
     frac = flagged.sum() / max(flagged.size, 1)
     title = (f"Missing and filled samples: {n_fill} filled, {n_miss} left missing "
              f"({100 * frac:.2f}% of {flagged.size} samples)")
-    if hidden:
+    if n_flagged_shown > show.size:
+        title += (f"\nthe {show.size} markers with the most flagged samples are shown, of "
+                  f"{int(any_flag.sum())} with any; all {len(labels)} are in the gap report "
+                  "table")
+    elif hidden:
         title += (f"\nonly the {show.size} markers with flagged samples are shown; "
                   f"{hidden} markers with no missing samples not shown")
     if show.size == 0:
