@@ -308,8 +308,9 @@ def test_gap_raster_with_nothing_missing():
     none = np.zeros((10, 50), bool)
     fig = plot_gaps(t, none, none, [str(i) for i in range(50)])
     ax = fig.axes[0]
-    assert "50 markers with no missing samples not shown" in ax.get_title()
-    assert any("no missing or filled samples" in x.get_text() for x in ax.texts)
+    assert "not shown" not in ax.get_title() and "0 filled, 0 left missing" in ax.get_title()
+    assert any("no missing or filled samples in any of the 50 markers" in x.get_text()
+               for x in ax.texts)
 
 
 def test_markers_figure(face):

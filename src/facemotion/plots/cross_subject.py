@@ -135,8 +135,9 @@ def plot_sweep_summary(table: pd.DataFrame, title: str = "sweep") -> Figure:
             elif series:
                 ax.legend(fontsize=7.5, loc="best")
         ax.set_ylabel(p["ylabel"])
-        if p["integer"]:
+        if p["integer"]:  # counts: from 0, so that 16 against 28 looks like it
             ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.set_ylim(bottom=0)
         ax.grid(True, alpha=0.3)
     for ax in axs[len(panels):]:
         ax.set_axis_off()

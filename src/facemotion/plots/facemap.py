@@ -135,10 +135,16 @@ def draw_markers(ax, xy: np.ndarray, labels: Sequence[str], highlight: Sequence[
         ax.scatter(xy[idx, 0], xy[idx, 1], s=size * 5, c=MAIN_COLOUR, edgecolors="white",
                    linewidths=0.6, zorder=4)
         if label_highlight:
+            # beside the marker, turned inwards near the right or top edge of the view (set
+            # the view first) so that the label stays inside the panel
+            (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
             for i in idx:
-                ax.annotate(labels[i], xy[i], xytext=(3, 3), textcoords="offset points",
-                            fontsize=8, color=MAIN_COLOUR, fontweight="bold", zorder=5,
-                            path_effects=HALO)
+                right = (xy[i, 0] - x0) > 0.7 * (x1 - x0)
+                top = (xy[i, 1] - y0) > 0.85 * (y1 - y0)
+                ax.annotate(labels[i], xy[i], xytext=(-3 if right else 3, -3 if top else 3),
+                            textcoords="offset points", ha="right" if right else "left",
+                            va="top" if top else "bottom", fontsize=8, color=MAIN_COLOUR,
+                            fontweight="bold", zorder=5, path_effects=HALO)
 
 
 def mesh_values(placed, xy: np.ndarray, values: np.ndarray) -> np.ndarray:

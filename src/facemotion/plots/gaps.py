@@ -84,7 +84,7 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
         title += (f"\nthe {show.size} markers with the most flagged samples are shown, of "
                   f"{int(any_flag.sum())} with any; all {len(labels)} are in the gap report "
                   "table")
-    elif hidden:
+    elif hidden and show.size:
         title += (f"\nonly the {show.size} markers with flagged samples are shown; "
                   f"{hidden} markers with no missing samples not shown")
     if show.size == 0:

@@ -125,8 +125,8 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
             io = label_index(labels, others)
             ax.scatter(xy[io, 0], xy[io, 1], s=14, facecolors="none", edgecolors="#EE6677",
                        linewidths=0.7, zorder=4)
-        draw_markers(ax, xy, labels, highlight=[mains[p]], dots=dots)
         setup_frontal(ax, extent)
+        draw_markers(ax, xy, labels, highlight=[mains[p]], dots=dots)
         ax.set_title(titles[p], fontsize=10)
         ax.label_outer()
     if art is not None:

@@ -39,7 +39,15 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
                 ax.annotate(m, (n, r), xytext=(0, 4), textcoords="offset points", fontsize=6,
                             color=c, ha="center")
     ax.set_xlabel("number of sentences in the displacement matrix")
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ns = sorted(int(n) for n in df["n_sentences"].unique())
+    if len(ns) <= 12:  # whole numbers of sentences: tick each one
+        ax.set_xticks(ns)
+        ax.set_xlim(ns[0] - 0.5, ns[-1] + 0.5)
+    else:
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    if len(ns) == 1:
+        ax.text(0.5, 0.02, "one training sentence only: nothing to compare against",
+                transform=ax.transAxes, ha="center", va="bottom", fontsize=8, color="0.3")
     if (df["r_rms"] > 0).all():
         ax.set_yscale("log")
         plain_log_labels(ax.yaxis)
