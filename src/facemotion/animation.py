@@ -155,13 +155,14 @@ class _Renderer:
             if axes_visible:
                 ax.set_xlabel("x (mm)", fontsize=7, labelpad=-6)
                 ax.set_ylabel("z (mm)", fontsize=7, labelpad=-6)
-                ax.set_zlabel("y (mm)", fontsize=7, labelpad=-6)
+                ax.set_zlabel("y (mm)", fontsize=7, labelpad=0)
                 ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{-v + 0.0:g}"))
                 ax.xaxis.set_major_locator(MaxNLocator(4))
                 ax.zaxis.set_major_locator(MaxNLocator(4))
                 # depth is seen nearly end-on: two ticks, or their labels collide
                 ax.yaxis.set_major_locator(MaxNLocator(2))
                 ax.tick_params(labelsize=6, pad=-3)
+                ax.zaxis.set_tick_params(pad=2)  # clear of the tick marks: keep the minus signs
             else:
                 ax.set_axis_off()
             poly = Poly3DCollection(np.zeros((len(self.quads), 4, 3)), linewidths=0,
