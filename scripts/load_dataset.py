@@ -1,5 +1,6 @@
 """Load a dataset's recordings into the displacement matrix A, with the gap check."""
 
+from facemotion.copy_fill import parse_copy_markers
 from facemotion.displacements import save_displacements
 from facemotion.loading import load_dataset
 from facemotion.plots.gaps import plot_gaps
@@ -22,7 +23,8 @@ def main(sm, log, prov):
         train=[i - 1 for i in ds["train"]], heldout=[i - 1 for i in ds["heldout"]],
         max_interp_s=sm.params.gaps["max_interp_s"], long_gaps=sm.params.gaps["long_gaps"],
         neutral=sm.params.neutral, limits=limits, sentences=ds["segments"],
-        subject_prefix=ds["subject_prefix"])
+        subject_prefix=ds["subject_prefix"],
+        copy_markers=parse_copy_markers(ds.get("copy_markers", []), "copy_markers"))
     prov.inputs = list(prov.inputs) + [r for r in recordings]
     d = loaded.displacements
     log.info("A: %d rows x %d markers from %d sentences", *d.A.shape, len(d.sentences))

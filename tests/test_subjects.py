@@ -96,3 +96,12 @@ def test_default_split_holds_out_last_quarter(tmp_path):
         resolve_datasets(subjects, {"x": {"subject": "S2a", "train": "1-5", "heldout": "5-6"}})
     with pytest.raises(InputError, match="unknown subject 'S9'"):
         resolve_datasets(subjects, {"x": {"subject": "S9"}})
+
+
+def test_copy_markers_column(tmp_path):
+    header = HEADER.rstrip("\n") + "\tsimulate\tcopy_markers\n"
+    sheet = write_sheet(tmp_path, ["S1\t\tc3d\tH1,H2,H3\t\tS1\t13=11"], header=header)
+    assert read_subject_sheet(sheet)["S1"].copy_markers == [("13", "11")]
+    sheet = write_sheet(tmp_path, ["S1\t\tc3d\tH1,H2,H3\t\tS1\t13"], header=header)
+    with pytest.raises(InputError, match=r"row 2: copy_markers: '13' must look like"):
+        read_subject_sheet(sheet)

@@ -1,9 +1,11 @@
-"""The virtual talker (facemotion.synth) against its planted ground truth and the paper's design.
+"""The virtual talker (facemotion.synth) against its planted ground truth, the paper's design
+and its calibration set.
 
-The references are independent of the package's analysis code: the head frame comes either
-from the planted head motion or from a small Kabsch fit of the head band written here, and the
-ranking from scipy's pivoted QR on a displacement matrix built here (rows frame-major: row
-3f + c is axis c of frame f; one column per face marker '1'..'57').
+The references are independent of the package's analysis code: the head frame comes from the
+planted head motion (scipy's rotations here) or from a small Kabsch fit of the head band written
+here; marker 13 of S1 is filled here by copying 11 (not by facemotion.copy_fill); the ranking is
+scipy's pivoted QR and the fits numpy's least squares on a displacement matrix built here (rows
+frame-major: row 3f + c is axis c of frame f; one column per face marker '1'..'57').
 """
 
 import numpy as np
@@ -14,12 +16,14 @@ from scipy.spatial.transform import Rotation
 from facemotion.errors import InputError
 from facemotion.recording import Recording
 from facemotion.synth import (
+    CALIBRATION,
     HEAD_PIVOT,
-    NOISE_3D_RMS_MM,
     NOISE_PER_AXIS_MM,
     SOURCES,
     influence_fields,
     marker_layout,
+    region_of,
+    sentence_script,
     simulate_subject,
     truth_to_npz,
 )
@@ -27,6 +31,7 @@ from facemotion.synth import (
 FACE = [str(i) for i in range(1, 58)]
 HEAD = [f"H{i}" for i in range(1, 7)]
 STUDY_SEEDS = {"S1": 1, "S2a": 2, "S2b": 3}       # config/subjects.tsv
+I11, I13 = FACE.index("11"), FACE.index("13")
 
 
 def sentence_rows(subj, s, key):
@@ -57,6 +62,8 @@ def kabsch_head_frame(rec, reference):
 
 
 def displacement_matrix(subj, sentences, kabsch=False):
+    """A from the face markers relative to each sentence's first frame; in S1, 13's lost
+    samples are filled by copying 11's displacement (the authors' fill, Sec. II)."""
     face = [subj.recordings[0].labels.index(m) for m in FACE]
     band = subj.truth["neutral"][-6:]
     blocks = []
@@ -64,6 +71,9 @@ def displacement_matrix(subj, sentences, kabsch=False):
         rec = subj.recordings[s]
         p = (kabsch_head_frame(rec, band) if kabsch
              else undo_head_motion(rec.points, sentence_rows(subj, s, "head_motion")))[:, face]
+        lost = sentence_rows(subj, s, "lost_13")
+        if lost.any():
+            p[lost, I13] = p[lost, I11] + (p[0, I13] - p[0, I11])
         d = p - p[0]
         blocks.append(d.transpose(0, 2, 1).reshape(-1, len(FACE)))
     return np.vstack(blocks)
@@ -71,7 +81,7 @@ def displacement_matrix(subj, sentences, kabsch=False):
 
 def ranking(A):
     R, P = scipy.linalg.qr(A, mode="r", pivoting=True)
-    return [FACE[p] for p in P], np.abs(np.diag(R)) / np.sqrt(A.shape[0])
+    return [FACE[p] for p in P], np.abs(np.diag(R))
 
 
 @pytest.fixture(scope="module")
@@ -79,12 +89,15 @@ def subjects():
     return {d: simulate_subject(d, seed=s, occlusions=False) for d, s in STUDY_SEEDS.items()}
 
 
+# ------------------------------------------------------------------ ground truth and design
+
+
 def test_deterministic_by_seed():
     a = simulate_subject("S2a", seed=5, n_sentences=3, occlusions=False)
     b = simulate_subject("S2a", seed=5, n_sentences=3, occlusions=False)
     c = simulate_subject("S2a", seed=6, n_sentences=3, occlusions=False)
     for ra, rb in zip(a.recordings, b.recordings, strict=True):
-        assert np.array_equal(ra.points, rb.points) and np.array_equal(ra.filled, rb.filled)
+        assert np.array_equal(ra.points, rb.points, equal_nan=True)
     for key in a.truth:
         assert np.array_equal(a.truth[key], b.truth[key]), key
     assert not np.array_equal(a.recordings[0].points[:10], c.recordings[0].points[:10])
@@ -94,41 +107,52 @@ def test_deterministic_by_seed():
     assert not np.allclose(a.truth["neutral"], d.truth["neutral"])
 
 
-def test_layout_geometry_and_the_papers_numbers():
+def test_layout_the_papers_named_markers_and_regions():
+    """Calibration item 1: Fig. 1's regions and every marker the text places."""
     labels, neutral, regions = marker_layout()
     assert labels == FACE + HEAD and neutral.shape == (63, 3)
     pos = dict(zip(labels, neutral, strict=True))
-    assert pos["2"][0] < 0 < pos["6"][0]                      # x from right to left
-    assert pos["11"][0] < 0 < pos["13"][0]
-    assert pos["38"][0] < pos["36"][0] < pos["34"][0]
+    assert pos["2"][0] < 0 < pos["6"][0]                      # x from right to left: brows
+    assert pos["11"][0] < 0 < pos["13"][0]                    # upper lids
+    assert pos["38"][0] < pos["36"][0] < pos["34"][0]         # right corner, upper lip, left
     assert pos["40"][1] < pos["36"][1] < pos["11"][1] < pos["2"][1]   # y up
-    assert pos["56"][1] == neutral[:57, 1].min()               # the chin is lowest
+    assert {region_of(m) for m in ("2", "6")} == {"brows"}
+    assert {region_of(m) for m in ("11", "13")} == {"eyelids"}
+    assert {region_of(m) for m in ("34", "36", "38", "40")} == {"lips"}
     face = neutral[:57]
+    mouth_y = 0.5 * (pos["36"][1] + pos["40"][1])
+    # 42, 43, 47, 48 on the lower right of the face (x < 0 is the talker's right)
+    for m in ("42", "43", "47", "48"):
+        assert pos[m][0] < 0 and pos[m][1] < mouth_y, m
+    # 43 near the right border: the rightmost face marker below the mouth
+    low = face[:, 1] < mouth_y
+    assert pos["43"][0] == face[low, 0].min()
+    # 48 and 56 both at the chin and close together; 56 among the lowest markers
+    assert region_of("48") == region_of("56") == "chin_jaw"
+    assert np.linalg.norm(pos["48"] - pos["56"]) < 20
+    assert pos["56"][1] < np.percentile(face[:, 1], 10)
     assert 120 < np.ptp(neutral[:, 0]) < 170 and 150 < np.ptp(neutral[:, 1]) < 220
     assert pos["17"][2] == face[:, 2].max()                    # nose tip most forward (z)
-    assert np.ptp(face[:, 2]) > 30                             # a curved surface
-    # roughly but not exactly symmetric: 2 mirrors 6 within a few mm, not exactly
-    mirror = pos["6"] * [-1, 1, 1] - pos["2"]
+    mirror = pos["6"] * [-1, 1, 1] - pos["2"]                  # roughly, not exactly, symmetric
     assert 0 < np.linalg.norm(mirror) < 10
-    # head band: six markers round the forehead, not collinear
-    band = neutral[57:]
+    band = neutral[57:]                                        # head band, not collinear
     assert np.linalg.svd(band - band.mean(0), compute_uv=False)[1] > 20
-    assert band[:, 1].min() > face[:, 1].mean()
     assert sorted(sum(regions.values(), [])) == sorted(labels)
-    assert {"40", "36", "34", "38"} <= set(regions["lips"])
-    # S2b is the same talker with markers re-placed by a few mm
-    _, n2b, _ = marker_layout(design="S2b")
+    _, n2b, _ = marker_layout(design="S2b")                    # S2b: markers re-placed
     shift = np.linalg.norm(n2b[:57, :2] - face[:, :2], axis=1)
     assert 1.0 < np.median(shift) < 5.0 and np.array_equal(n2b[57:], band)
+    with pytest.raises(InputError, match="'H1'"):
+        region_of("H1")
+    assert len(CALIBRATION) == 4
 
 
-def test_influence_fields_have_lobes_of_both_signs():
+def test_influence_fields_are_anatomical():
     _, neutral, _ = marker_layout()
     D = influence_fields(neutral[:57])
     assert D.shape == (len(SOURCES), 57, 3)
     i = {m: FACE.index(m) for m in FACE}
     jaw = D[SOURCES.index("jaw_open")]
-    assert jaw[i["56"], 1] < -7 and jaw[i["40"], 1] < -5       # chin and lower lip down
+    assert jaw[i["56"], 1] < -3 and jaw[i["40"], 1] < -2.5     # chin and lower lip down
     assert abs(jaw[i["2"]]).max() < 0.05                       # the brows do not move
     assert jaw[:, 1].max() > 0.2                               # cheeks rise a little
     low = D[SOURCES.index("lower_lip_depression")]
@@ -137,18 +161,24 @@ def test_influence_fields_have_lobes_of_both_signs():
     assert lc[i["34"], 0] > 3 and abs(lc[i["38"], 0]) < 0.5    # the left corner, to the left
     blink = D[SOURCES.index("right_blink")]
     assert -9 < blink[i["11"], 1] < -5 and abs(blink[i["13"], 1]) < 0.1
+    lat = D[SOURCES.index("jaw_lateral")]                      # the mandible turns sideways
+    assert 0.8 < lat[i["56"], 0] < 1.3 and abs(lat[i["2"]]).max() < 1e-3
+    assert lat[i["56"], 0] > lat[i["49"], 0] > 0               # more at the chin than the angle
+    chin = D[SOURCES.index("chin_raise")]                      # mentalis: chin skin up
+    assert chin[i["56"], 1] == chin[:, 1].max() > 2.5 and chin[i["40"], 1] > 0.3
+    assert abs(chin[i["6"]]).max() < 1e-3
 
 
 def test_sources_at_speech_rates_smooth_and_starting_at_rest(subjects):
     subj = subjects["S2a"]
     rate = float(subj.truth["rate"])
     frames = subj.truth["sentence_frames"]
-    assert frames.min() >= 1.5 * rate and frames.max() <= 4.0 * rate + 1
+    assert frames.min() >= 1.3 * rate and frames.max() <= 4.5 * rate   # 1.5-4 s, +-tempo
     jaw_peaks = []
     for s in range(10):
         c = sentence_rows(subj, s, "source_courses")
         assert np.allclose(c[0], 0.0, atol=1e-12)                 # rest at t = 0
-        assert np.abs(np.diff(c, axis=0)).max() < 0.2             # smooth at 120 Hz
+        assert np.abs(np.diff(c, axis=0)).max() < 0.25            # smooth at 120 Hz
         jaw = c[:, SOURCES.index("jaw_open")]
         peaks = np.sum((jaw[1:-1] > jaw[:-2]) & (jaw[1:-1] >= jaw[2:]) & (jaw[1:-1] > 0.2))
         jaw_peaks.append(peaks / (len(c) / rate))
@@ -156,63 +186,48 @@ def test_sources_at_speech_rates_smooth_and_starting_at_rest(subjects):
     D = subj.truth["fields"]
     courses = subj.truth["source_courses"]
     chin = courses @ D[:, FACE.index("56"), 1]
-    assert 8 < -chin.min() < 20                                     # jaw opening 10-15 mm
+    assert 3 < -chin.min() < 10                                    # jaw opening in speech
     lid = courses @ D[:, FACE.index("11"), 1]
-    assert 4.5 < -lid.min() < 10                                    # blinks 5-8 mm
+    assert 4.5 < -lid.min() < 10                                   # blinks 5-8 mm
 
 
-def test_s1_marker_13_copies_11_where_filled(subjects):
+def test_s2a_and_s2b_are_the_same_scripts_recorded_twice(subjects):
+    """Same planned gestures per sentence, session-level timing and amplitude, re-placed
+    markers; not the same recording."""
+    a, b = subjects["S2a"], subjects["S2b"]
+    assert np.array_equal(a.truth["script_index"], b.truth["script_index"])
+    dur_a = a.truth["sentence_frames"] * a.truth["tempo"]     # script time = frames x tempo
+    dur_b = b.truth["sentence_frames"] * b.truth["tempo"]
+    np.testing.assert_allclose(dur_a, dur_b, rtol=0.02)            # same script lengths
+    assert not np.allclose(a.truth["tempo"], b.truth["tempo"])      # different sessions
+    jaw = SOURCES.index("jaw_open")
+    corr, other = [], []
+    for s in range(20):
+        ca, cb = sentence_rows(a, s, "source_courses"), sentence_rows(b, s, "source_courses")
+        # resample b's jaw course onto a's normalised time: the same syllables
+        u = np.linspace(0, 1, len(ca))
+        jb = np.interp(u, np.linspace(0, 1, len(cb)), cb[:, jaw])
+        corr.append(np.corrcoef(ca[:, jaw], jb)[0, 1])
+        cn = sentence_rows(b, s + 1, "source_courses")
+        jn = np.interp(u, np.linspace(0, 1, len(cn)), cn[:, jaw])
+        other.append(np.corrcoef(ca[:, jaw], jn)[0, 1])
+    assert np.median(corr) > 0.6 > np.median(other) + 0.3
+    assert sentence_script(3).events.shape == sentence_script(3).events.shape
+    assert np.array_equal(sentence_script(3).events, sentence_script(3).events)
+    assert not np.array_equal(sentence_script(3).events[:5], sentence_script(4).events[:5])
+
+
+def test_s1_marker_13_is_lost_after_each_sentences_first_frame(subjects):
     s1 = subjects["S1"]
-    labels = s1.recordings[0].labels
-    i11, i13 = labels.index("11"), labels.index("13")
-    offset = s1.truth["neutral"][i13] - s1.truth["neutral"][i11]
-    n_filled = n_total = 0
     for s, rec in enumerate(s1.recordings):
-        mask = rec.filled[:, i13]
-        assert np.array_equal(mask, sentence_rows(s1, s, "filled_13"))
-        assert np.array_equal(rec.filled, sentence_rows(s1, s, "filled"))
-        assert not np.delete(rec.filled, i13, axis=1).any()      # only 13 is filled
-        q = undo_head_motion(rec.points, sentence_rows(s1, s, "head_motion"))
-        if mask.any():
-            assert np.max(np.abs(q[mask, i13] - q[mask, i11] - offset)) < 1e-9
-        if (~mask).any():                                          # measured: not a copy
-            assert np.sqrt(np.mean((q[~mask, i13] - q[~mask, i11] - offset) ** 2)) > 0.3
-        n_filled += mask.sum()
-        n_total += mask.size
-    assert 0.85 < n_filled / n_total < 0.97
-    # the other designs are clean
+        lost = sentence_rows(s1, s, "lost_13")
+        assert not lost[0] and lost[1:].all()
+        assert np.isnan(rec.points[1:, I13]).all() and np.isfinite(rec.points[0, I13]).all()
+        assert np.isfinite(np.delete(rec.points, I13, axis=1)).all()
+        assert not rec.filled.any()                      # the producer fills nothing
     for d in ("S2a", "S2b"):
-        assert not any(r.filled.any() for r in subjects[d].recordings)
-
-
-def test_s1_epsilon_rank_56_with_13_below_tolerance(subjects):
-    for sentences in (range(30), range(40)):
-        order, r = ranking(displacement_matrix(subjects["S1"], sentences))
-        assert int(np.sum(r > 0.5)) == 56
-        assert order[-1] == "13" and r[-1] < 0.35
-        assert r[-2] > 0.6
-        assert order[0] in {"40", "56"}
-
-
-@pytest.mark.parametrize("design", ["S2a", "S2b"])
-def test_s2_epsilon_rank_57_and_paper_like_first_pivots(subjects, design):
-    for sentences in (range(30), range(50), range(20, 50)):
-        order, r = ranking(displacement_matrix(subjects[design], sentences))
-        assert int(np.sum(r > 0.5)) == 57, (design, sentences)
-        assert r[-1] > 0.6, (design, sentences)
-        assert order[0] in {"40", "56"}                            # lower lip or chin first
-        assert {"34", "38"} <= set(order[:6])                      # both lip corners early
-        assert "36" in order[:10]                                  # upper lip
-        assert {"2", "6"} & set(order[:10])                        # a brow
-        assert {"11", "13"} & set(order[:10])                      # an eyelid
-
-
-def test_ranking_survives_a_kabsch_head_alignment(subjects):
-    """The package's route (fit the head band per frame) gives the same rank results."""
-    order, r = ranking(displacement_matrix(subjects["S1"], range(30), kabsch=True))
-    assert int(np.sum(r > 0.5)) == 56 and order[-1] == "13" and r[-1] < 0.35
-    order, r = ranking(displacement_matrix(subjects["S2a"], range(30), kabsch=True))
-    assert int(np.sum(r > 0.5)) == 57 and r[-1] > 0.6 and order[0] in {"40", "56"}
+        assert not subjects[d].truth["lost_13"].any()
+        assert all(np.isfinite(r.points).all() for r in subjects[d].recordings)
 
 
 def test_head_motion_and_noise_are_as_documented(subjects):
@@ -230,20 +245,69 @@ def test_head_motion_and_noise_are_as_documented(subjects):
         rec = subj.recordings[s]
         q = undo_head_motion(rec.points, sentence_rows(subj, s, "head_motion"))
         resid.append(q[:, band] - subj.truth["neutral"][band])   # rigid band: noise only
-        # sentences start at rest: the first frame is the neutral face plus noise
-        first = q[0, :57] - subj.truth["neutral"][:57]
-        assert np.sqrt(np.mean(np.sum(first**2, axis=-1))) < 2 * NOISE_3D_RMS_MM
+        first = q[0, :57] - subj.truth["neutral"][:57]           # sentences start at rest
+        assert np.sqrt(np.mean(first**2)) < 2 * NOISE_PER_AXIS_MM
     resid = np.concatenate(resid).reshape(-1, 3)
-    assert abs(resid.std(axis=0) - NOISE_PER_AXIS_MM).max() < 0.02     # per coordinate
-    assert abs(np.sqrt(np.mean(np.sum(resid**2, axis=1))) - NOISE_3D_RMS_MM) < 0.02  # 3-D
+    assert abs(resid.std(axis=0) - NOISE_PER_AXIS_MM).max() < 0.01     # per coordinate
     assert abs(resid.mean()) < 0.01
-    # and the noise-free face model plus noise explains the face up to the skin motion
+    # the face minus the sources is the tissue motion plus noise: smooth in space
     rec = subj.recordings[0]
     q = undo_head_motion(rec.points, sentence_rows(subj, 0, "head_motion"))[:, :57]
     model = subj.truth["neutral"][:57] + np.einsum(
         "fk,knc->fnc", sentence_rows(subj, 0, "source_courses"), subj.truth["fields"])
-    local = np.sqrt(np.mean((q - model) ** 2))
-    assert 0.5 < local < 1.0                  # skin motion ~0.6 mm and noise 0.29 mm per axis
+    rest = (q - model)[40:]                                       # after the onset
+    assert 0.2 < np.sqrt(np.mean(rest**2)) < 0.6                  # ~0.35 tissue + 0.1 noise
+    pos = subj.truth["neutral"][:57]
+    d = np.linalg.norm(pos[:, None] - pos[None], axis=-1)
+    c = np.corrcoef(rest[:, :, 1].T)
+    near = c[(d > 0) & (d < 25)].mean()
+    far = c[d > 120].mean()
+    assert near > 0.5 and near > far + 0.3                        # correlated neighbours
+
+
+# ------------------------------------------------------------------ calibration set
+
+
+@pytest.mark.parametrize("design", ["S1", "S2a", "S2b"])
+def test_calibration_r_decays_smoothly(subjects, design):
+    """Calibration item 2: r_50 / r_10 <= 0.5 and still decreasing through the tail."""
+    order, r = ranking(displacement_matrix(subjects[design], range(30)))
+    assert r[49] / r[9] <= 0.5, r[49] / r[9]
+    assert r[49] / r[29] <= 0.9, r[49] / r[29]                    # no flat tail
+    assert np.all(np.diff(r) <= 1e-9 * r[0])
+    assert order[0] == "40" and "36" in order[:6] and {"34", "38"} <= set(order[:4])
+
+
+def test_calibration_s1_copy_gives_rank_56_and_a_sudden_drop(subjects):
+    """Calibration item 3: r56 / r57 >= 50 (the paper's 227) with 13 copied from 11."""
+    for sentences in (range(30), range(40)):
+        order, r = ranking(displacement_matrix(subjects["S1"], sentences))
+        assert r[55] / r[56] >= 50
+        assert order[-1] in {"11", "13"}          # the copy and its source cannot be told
+        assert r[56] <= 0.5 < r[55]               # unnormalised: ||R22||_2 = r57 <= 0.5
+    for d in ("S2a", "S2b"):
+        _, r = ranking(displacement_matrix(subjects[d], range(30)))
+        assert r[56] > 0.5 and r[55] / r[56] < 1.5                # clean: no drop
+
+
+def test_calibration_fig9_marker_56_with_a_basis_of_ten(subjects):
+    """Calibration item 4: 56 is secondary in S1's basis of 10 and its trajectory in sentence
+    31 has maximum errors within 1.5x of 0.8, 2.0 and 0.9 mm (numpy least squares, here with
+    the head band fitted by Kabsch as in the study)."""
+    s1 = subjects["S1"]
+    A = displacement_matrix(s1, range(30), kabsch=True)
+    order, _ = ranking(A)
+    main = [FACE.index(m) for m in order[:10]]
+    assert "56" not in order[:10]
+    j = FACE.index("56")
+    X = np.linalg.lstsq(A[:, main], A[:, j], rcond=None)[0]
+    B = displacement_matrix(s1, [30], kabsch=True)
+    err = np.abs(B[:, j] - B[:, main] @ X).reshape(-1, 3).max(axis=0)
+    paper = np.array([0.8, 2.0, 0.9])
+    assert np.all(err >= paper / 1.5) and np.all(err <= paper * 1.5), err
+
+
+# ------------------------------------------------------------------ files and settings
 
 
 def test_smoke_size_generic_design_and_recordings(tmp_path):
@@ -253,7 +317,7 @@ def test_smoke_size_generic_design_and_recordings(tmp_path):
     assert subj.head_markers == HEAD
     for rec in subj.recordings:
         assert isinstance(rec, Recording) and rec.rate == 60.0
-        assert 30 <= rec.n_frames <= 60 and rec.labels == FACE + HEAD
+        assert 25 <= rec.n_frames <= 66 and rec.labels == FACE + HEAD
         assert np.isfinite(rec.points).all() and not rec.filled.any()
     path = tmp_path / "truth.npz"
     truth_to_npz(subj, path)
@@ -268,7 +332,7 @@ def test_speed_of_a_full_session():
 
     t0 = time.perf_counter()
     simulate_subject("S2a", seed=0)
-    assert time.perf_counter() - t0 < 2.0
+    assert time.perf_counter() - t0 < 8.0          # ~1.5 s on an idle core
 
 
 def test_bad_settings_name_the_setting():
@@ -284,8 +348,8 @@ def test_bad_settings_name_the_setting():
         simulate_subject("S", n_sentences=2, sentence_duration=(2.0, 1.0))
     with pytest.raises(InputError, match="rate"):
         simulate_subject("S", n_sentences=2, rate=0.0)
-    with pytest.raises(InputError, match="fill_fraction"):
-        simulate_subject("S1", fill_fraction=1.5)
+    with pytest.raises(InputError, match="tissue_rms_mm"):
+        simulate_subject("S", n_sentences=2, tissue_rms_mm=-1.0)
 
 
 def test_occlusions_are_missing_samples_that_survive_c3d(tmp_path):

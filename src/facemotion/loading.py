@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from facemotion.copy_fill import copy_fill
 from facemotion.displacements import (
     Displacements,
     build_displacements,
@@ -81,7 +82,8 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                  max_interp_s: float = 0.1, long_gaps: str = "pca",
                  neutral: str = "first_frame", limits: Limits | None = None,
                  sentences: list | None = None,
-                 subject_prefix: str | None = None) -> LoadedDataset:
+                 subject_prefix: str | None = None,
+                 copy_markers: list[tuple[str, str]] = ()) -> LoadedDataset:
     """Load the sentences ``train + heldout`` (0-based indices into the sentences).
 
     The sentences are ``recordings`` (one file each) or, when given, ``sentences``: intervals
@@ -90,6 +92,9 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     then held-out ones. Every sentence is checked (:func:`facemotion.validation.check_take`,
     with ``limits``) on the markers the analysis uses (the analysed and the head markers)
     before head motion is removed.
+    ``copy_markers``: (target, source) pairs; the target's missing samples are filled by
+    copying the source's displacement in head coordinates (``facemotion.copy_fill``) before
+    the other gaps are filled.
     """
     from facemotion.gaps import fill_gaps
     from facemotion.head_motion import align_head
@@ -166,11 +171,16 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     if dropped:
         log.info("left out (sheet's include/exclude_markers): %s", ", ".join(dropped))
     missing = [~np.isfinite(r.points).all(axis=2) for r in recs]
+    recs, copied = copy_fill(recs, list(copy_markers),
+                             where=f"{paths[0]}: subject sheet's copy_markers")
+    for t, s in copy_markers:
+        log.info("marker %s: %d missing samples filled by copying %s's displacement (head "
+                 "coordinates)", t, copied[t], s)
     filled_recs, reports = [], []
-    for r in recs:
+    for r, miss in zip(recs, missing, strict=True):
         f, rep = fill_gaps(r, max_interp_s=max_interp_s, long_gaps=long_gaps)
         filled_recs.append(f)
-        reports.append(rep)
+        reports.append(_report_copies(rep, miss, r, list(copy_markers)))
     names = [s.name for s in chosen]
     disp = build_displacements(filled_recs, names, neutral=neutral, head_residuals=residuals)
     cols = [used.index(m) for m in keep]
@@ -205,6 +215,28 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         filled=np.concatenate([f.filled for f in filled_recs]),
         sentence_starts_s=[float(s) for s in starts],
     )
+
+
+def _report_copies(rep: pd.DataFrame, miss: np.ndarray, rec, pairs: list[tuple[str, str]]
+                   ) -> pd.DataFrame:
+    """The gap report of a take, with the copy-filled targets described as they were before
+    the copy (``miss``: missing samples, gaps) and 'copy:SOURCE' among their fill methods."""
+    from facemotion.gaps import runs
+
+    rep = rep.copy()
+    copied = miss & np.isfinite(rec.points).all(axis=2)
+    for t, s in pairs:
+        j = rec.labels.index(t)
+        i = int(np.flatnonzero(rep["marker"].to_numpy() == t)[0])
+        r = runs(miss[:, j])
+        rep.loc[i, "missing_frames"] = int(miss[:, j].sum())
+        rep.loc[i, "missing_fraction"] = float(miss[:, j].mean()) if len(miss) else 0.0
+        rep.loc[i, "longest_gap_frames"] = max((b - a for a, b in r), default=0)
+        rep.loc[i, "n_gaps"] = len(r)
+        if copied[:, j].any():
+            rest = [m for m in str(rep.loc[i, "fill_method"]).split("+") if m != "none"]
+            rep.loc[i, "fill_method"] = "+".join([f"copy:{s}"] + rest)
+    return rep
 
 
 def split_roles(d: Displacements, sentences: pd.DataFrame | str | Path

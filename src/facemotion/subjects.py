@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from facemotion.copy_fill import parse_copy_markers
 from facemotion.errors import InputError
 from facemotion.input.segments import Segment, segment_subject
 
@@ -23,7 +24,8 @@ FORMATS = ("c3d", "trc", "csv", "qualisys_tsv", "optitrack_csv", "openface_csv")
 UNITS = ("mm", "cm", "m", "in")
 SHEET_COLUMNS = ("subject", "recordings", "format", "head_markers", "exclude_markers")
 OPTIONAL_COLUMNS = ("units", "include_markers", "simulate", "seed", "talker_seed",
-                    "n_sentences", "sentence_duration", "segments", "subject_prefix")
+                    "n_sentences", "sentence_duration", "segments", "subject_prefix",
+                    "copy_markers")
 DESIGN_SENTENCES = {"S1": 40, "S2a": 50, "S2b": 50}
 DEFAULT_HELDOUT_FRACTION = 0.25
 _ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
@@ -58,6 +60,7 @@ class Subject:
     segments: list[Segment] | None = None   # sentences cut from the takes; None = whole takes
     segment_sources: list[str] = field(default_factory=list)  # TextGrids / tables read
     subject_prefix: str | None = None
+    copy_markers: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def sentences(self) -> list[Segment]:
@@ -145,6 +148,7 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
             raise InputError(f"{where}: unknown units {units!r} for subject {sid!r} "
                              f"(use one of {', '.join(UNITS)})")
         design = _cell(row, "simulate")
+        copy_markers = parse_copy_markers(_cell(row, "copy_markers"), f"{where}: copy_markers")
         seed = _int_cell(row, "seed", where, 0)
         talker_seed = _int_cell(row, "talker_seed", where, None)
         n_sentences = _int_cell(row, "n_sentences", where, None)
@@ -218,7 +222,8 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
             exclude_markers=_labels_cell(row, "exclude_markers", where, sid),
             include_markers=_labels_cell(row, "include_markers", where, sid),
             units=units, simulate=design, seed=seed, talker_seed=talker_seed,
-            n_sentences=n_sentences, sentence_duration=sentence_duration)
+            n_sentences=n_sentences, sentence_duration=sentence_duration,
+            copy_markers=copy_markers)
     return subjects
 
 

@@ -126,6 +126,7 @@ def dataset_params(dataset):
         "head_markers": subj.head_markers,
         "exclude_markers": subj.exclude_markers,
         "include_markers": subj.include_markers,
+        "copy_markers": [f"{t}={s}" for t, s in subj.copy_markers],
         "train": [i + 1 for i in ds.train],
         "heldout": [i + 1 for i in ds.heldout],
         "sentence_names": subj.sentence_names,
@@ -255,6 +256,8 @@ with exit_on_error():
             seed=1000 + _i,
             talker_seed=_i + 1,
             n_sentences=_n,
+            # the S1 design loses marker 13 after each sentence's first frame (synth.py)
+            copy_markers=[("13", "11")] if _design == "S1" else [],
         )
         _held = n_heldout(_n, config["heldout_fraction"])
         DATASETS[_sid] = Dataset(
