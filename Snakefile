@@ -15,6 +15,7 @@ include: "workflow/rules/animate.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/lips.smk"
 include: "workflow/rules/sweeps.smk"
+include: "workflow/rules/compare.smk"
 
 
 rule all:

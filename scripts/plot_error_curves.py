@@ -1,4 +1,4 @@
-"""Held-out error curves of all datasets overlaid (paper Figs. 9-10)."""
+"""Held-out error curves of all datasets overlaid (paper Fig. 10)."""
 
 import pandas as pd
 

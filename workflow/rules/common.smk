@@ -175,7 +175,7 @@ def all_outputs():
         out += ["results/figures/error_curves.png"]
     for ls in config["lips"]["subjects"]:
         out += [f"results/lips/{ls}/reconstruction.tsv"]
-    return out + sweep_outputs()
+    return out + sweep_outputs() + comparison_outputs()
 
 
 def final_outputs():

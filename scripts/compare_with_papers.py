@@ -1,0 +1,29 @@
+"""The papers' quantitative statements beside ours: paper_comparison.tsv and its figure."""
+
+from facemotion.paper_comparison import compare, read_inputs
+from facemotion.plots.comparison import plot_paper_comparison
+from facemotion.provenance import save_figure, write_table
+from facemotion.snakemake_adapter import run_step
+
+
+def main(sm, log, prov):
+    paths = {}
+    for key in ("selected", "rank_summary", "lip_reconstruction", "lip_counts"):
+        if key in sm.input.keys():
+            paths[key] = sm.input[key]
+    for label, d in sm.params.datasets.items():
+        for what in ("r_values", "stability", "curve", "trajectory", "coefficients"):
+            name = f"{what}__{d}"
+            if name in sm.input.keys():
+                paths[f"{what}:{label}"] = sm.input[name]
+    inputs = read_inputs(paths, tolerance_mm=sm.params.tolerance_mm,
+                         lip_subject=sm.params.lip_subject or "")
+    table = compare(inputs)
+    write_table(table, sm.output.table, "paper_comparison", prov)
+    counts = table.groupby(["paper", "verdict"]).size().to_dict()
+    log.info("%d rows; verdicts: %s", len(table), counts)
+    fig = plot_paper_comparison(table)
+    save_figure(fig, [sm.output.png, sm.output.pdf], "paper_comparison", prov)
+
+
+run_step(snakemake, main)  # noqa: F821

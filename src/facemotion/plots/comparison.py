@@ -1,0 +1,99 @@
+"""The papers against this study: the key rows of ``paper_comparison.tsv`` as one figure."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from facemotion.plots.style import require_columns
+
+VERDICT_COLOUR = {"reproduced": "#228833", "same shape": "#CCBB44", "differs": "#EE6677",
+                  "not measured": "#BBBBBB"}
+CLIP = (1e-2, 1e2)          # ratios beyond are drawn at the edge, their value written
+
+
+def _number(s) -> float:
+    try:
+        return float(str(s))
+    except ValueError:
+        return np.nan
+
+
+def numeric_rows(table: pd.DataFrame) -> pd.DataFrame:
+    """Rows outside Table I whose paper and own values are both positive numbers, with
+    ``ratio`` = ours / paper."""
+    t = table[table["where"] != "Table I"].copy()
+    t["paper_num"] = t["paper_value"].map(_number)
+    t["our_num"] = t["our_value"].map(_number)
+    t = t[(t["paper_num"] > 0) & np.isfinite(t["our_num"]) & (t["our_num"] > 0)]
+    t["ratio"] = t["our_num"] / t["paper_num"]
+    return t
+
+
+def plot_paper_comparison(table: pd.DataFrame) -> Figure:
+    """Left: ours / paper for every numeric statement (log axis, 1.5x band; colour = verdict,
+    hollow = calibration target). Right: Table I's cells per dataset by verdict."""
+    require_columns(table, ("where", "statement", "paper", "paper_value", "our_value",
+                            "verdict", "calibration"), "paper comparison")
+    num = numeric_rows(table)
+    ti = table[table["where"] == "Table I"].copy()
+    n = max(len(num), 1)
+    fig = Figure(figsize=(12.0, 1.6 + 0.24 * n), layout="constrained")
+    ax, bx = fig.subplots(1, 2, width_ratios=[2.4, 1.0])
+    y = np.arange(len(num))[::-1]
+    ax.axvspan(1 / 1.5, 1.5, color="0.9", zorder=0)
+    ax.axvline(1.0, color="0.5", lw=0.8, zorder=1)
+    for yi, (_, r) in zip(y, num.iterrows(), strict=True):
+        c = VERDICT_COLOUR[r["verdict"]]
+        x = float(np.clip(r["ratio"], *CLIP))
+        cal = r["calibration"] == "yes"
+        ax.plot([x], [yi], marker="o", ms=7, mec=c, mfc="white" if cal else c, mew=1.8,
+                zorder=3)
+        if x != r["ratio"]:
+            ax.annotate(f"{r['ratio']:.2g}", (x, yi), xytext=(-6 if x > 1 else 6, 4),
+                        textcoords="offset points", fontsize=7,
+                        ha="right" if x > 1 else "left", color="0.25")
+    short = {"Lucero & Munhall 2008": "L&M", "Basu & Pentland 1997": "B&P"}
+    labels = [f"{short.get(r['paper'], r['paper'])} {r['where']}: {r['statement']}"
+              for _, r in num.iterrows()]
+    ax.set_yticks(y, labels, fontsize=7.5)
+    ax.set_xscale("log")
+    ax.set_xlim(CLIP[0] / 1.5, CLIP[1] * 1.5)
+    ax.set_ylim(-0.8, max(len(num) - 0.2, 0.8))
+    ax.set_xlabel("our value / the paper's value (log scale; grey band: within 1.5x)")
+    ax.set_title("Numeric statements of the papers", fontsize=10)
+    ax.grid(True, axis="x", which="major", alpha=0.3)
+    handles = [Line2D([], [], ls="", marker="o", mfc=c, mec=c, label=v)
+               for v, c in VERDICT_COLOUR.items() if v != "not measured"]
+    handles.append(Line2D([], [], ls="", marker="o", mfc="white", mec="0.3",
+                          label="calibration target"))
+    ax.legend(handles=handles, fontsize=7.5, loc="lower right")
+    # Table I: cells per dataset by verdict
+    if len(ti):
+        ti["dataset"] = ti["statement"].str.split(",").str[0]
+        order = list(dict.fromkeys(ti["dataset"]))
+        counts = ti.groupby(["dataset", "verdict"]).size().unstack(fill_value=0)
+        left = np.zeros(len(order))
+        for v, c in VERDICT_COLOUR.items():
+            vals = np.array([counts.loc[d, v] if v in counts.columns else 0 for d in order],
+                            float)
+            bx.barh(np.arange(len(order))[::-1], vals, left=left, color=c, label=v)
+            for i, (lv, vv) in enumerate(zip(left, vals, strict=True)):
+                if vv:
+                    bx.text(lv + vv / 2, len(order) - 1 - i, str(int(vv)), ha="center",
+                            va="center", fontsize=8)
+            left += vals
+        bx.set_yticks(np.arange(len(order))[::-1], order)
+        bx.set_xlabel("Table I cells (first 16 pivots)")
+        bx.set_xlim(0, max(left.max(), 1))
+        bx.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncols=2)
+    else:
+        bx.text(0.5, 0.5, "Table I not measured", ha="center", va="center",
+                transform=bx.transAxes)
+        bx.set_axis_off()
+    bx.set_title("L&M Table I: same marker / same region / other", fontsize=10)
+    fig.suptitle("The papers' quantitative statements against this study "
+                 "(results/tables/paper_comparison.tsv)", fontsize=11)
+    return fig

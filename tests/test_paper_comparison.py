@@ -1,0 +1,161 @@
+"""paper_comparison: rows, verdict rules and rendering, on hand-made outputs whose right
+answers are known (the paper's own values must score 'reproduced')."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from facemotion.paper_comparison import (
+    BP_TABLE_1,
+    COLUMNS,
+    TABLE_I,
+    Inputs,
+    compare,
+    factor_verdict,
+    main,
+    read_inputs,
+    region,
+    to_markdown,
+)
+
+
+def paper_like_inputs(n_markers=57):
+    """Outputs that say exactly what the papers say."""
+    sel = pd.DataFrame({"order": [str(i) for i in range(1, 17)],
+                        **{lab: [str(m) for m in col] for lab, col in TABLE_I.items()}})
+    rank = pd.DataFrame({"dataset": ["S1", "S2a", "S2b"], "tolerance_mm": [0.5] * 3,
+                         "r_normalisation": ["none"] * 3, "epsilon_rank": [56, 57, 57]})
+    r = np.geomspace(600.0, 30.0, n_markers)         # smooth: r50/r10 <= 0.5
+    r1 = r.copy()
+    r1[55], r1[56] = 22.70, 0.10
+    order = [str(m) for m in TABLE_I["S1"]]
+    rest = [str(m) for m in range(1, 58) if str(m) not in order and m != 13]
+    s1_markers = order + rest + ["13"]
+    r_values = {"S1": pd.DataFrame({"order": range(1, 58), "marker": s1_markers,
+                                    "r_normalised": r1, "r_normalisation": "none"})}
+    for lab in ("S2a", "S2b"):
+        r_values[lab] = pd.DataFrame({"order": range(1, 58), "marker": s1_markers,
+                                      "r_normalised": r, "r_normalisation": "none"})
+    stab = {lab: pd.DataFrame({"order": range(1, 13), "settled_sentences": [25] * 12})
+            for lab in ("S1", "S2a")}
+    k = np.arange(1, 58)
+    curve = pd.DataFrame({"k": k, "mean_abs_error_mm": 1.5 / np.sqrt(k),
+                          "rel_error_per_marker": 0.9 / np.sqrt(k),
+                          "rel_error_pooled": 0.4 / np.sqrt(k)})
+    traj = pd.DataFrame({"marker": "56", "sentence": "S1_s31", "k": 10, "in_basis": False,
+                         "axis": ["x", "y", "z"], "max_abs_error_mm": [0.8, 2.0, 0.9]})
+    coef = pd.DataFrame({"main_marker": ["40", "11"], "13": [0.0, 1.0]})
+    rec = pd.DataFrame([{"view": v, "covariance": c, "paper_definition": True,
+                         "mse_per_dof_model_units2": x} for (v, c), x in BP_TABLE_1.items()])
+    counts = pd.DataFrame({"quantity": ["variance_in_modes_percent", "triangles", "nodes",
+                                        "dof", "constrained_dof", "free_dof",
+                                        "depth_share_test_frames"],
+                           "our_value": [99.2, 336, 204, 612, 48, 600, 0.4]})
+    return Inputs(selected=sel, rank_summary=rank, r_values=r_values, stability=stab,
+                  curves={"S1": curve}, trajectory={"S1": traj},
+                  coefficients_k10={"S1": coef}, lip_reconstruction=rec, lip_counts=counts)
+
+
+def test_the_papers_own_values_are_reproduced_everywhere():
+    t = compare(paper_like_inputs())
+    assert list(t.columns) == COLUMNS and len(t) >= 40
+    assert (t["row"] == np.arange(1, len(t) + 1)).all()
+    bad = t[t["verdict"] != "reproduced"]
+    assert bad.empty, bad[["statement", "paper_value", "our_value", "verdict"]].to_string()
+    assert (t["where"] == "Table I").sum() == 80
+    assert {"Lucero & Munhall 2008", "Basu & Pentland 1997"} == set(t["paper"])
+    assert (t["rule"].str.len() > 10).all()
+    cal = t[t["calibration"] == "yes"]["statement"].str.cat(sep=" | ")
+    for needle in ("r56/r57", "decrease smoothly", "maximum y error", "faces of the mesh"):
+        assert needle in cal
+    assert "S1, pivot 1" not in cal                            # Table I is a prediction
+
+
+def test_table_i_cells_scored_by_marker_and_region():
+    inp = paper_like_inputs()
+    sel = inp.selected.copy()
+    sel.loc[0, "S1"] = "41"          # 40 -> 41: another lip marker: same region
+    sel.loc[1, "S1"] = "2"           # 34 -> 2: a brow: differs
+    sel.loc[2, "S1"] = ""            # not selected (fewer markers)
+    inp.selected = sel
+    t = compare(inp).set_index("statement")
+    assert t.loc["S1, pivot 1", "verdict"] == "same shape"
+    assert t.loc["S1, pivot 1", "our_value"] == "41 (lips)"
+    assert t.loc["S1, pivot 2", "verdict"] == "differs"
+    assert t.loc["S1, pivot 3", "verdict"] == "not measured"
+    assert region("40") == "lips" and region("H1") == "?"
+
+
+def test_numeric_rules_and_missing_inputs():
+    assert factor_verdict(1.4, 1.0, 1.5, 3.0) == "reproduced"
+    assert factor_verdict(0.5, 1.0, 1.5, 3.0) == "same shape"
+    assert factor_verdict(4.0, 1.0, 1.5, 3.0) == "differs"
+    assert factor_verdict(np.nan, 1.0, 1.5, 3.0) == "not measured"
+    inp = paper_like_inputs()
+    inp.trajectory["S1"].loc[:, "max_abs_error_mm"] = [0.8, 7.0, 0.3]
+    r = inp.r_values["S1"]
+    r.loc[56, "r_normalised"] = 1.0                     # r56/r57 = 22.7: a drop, not >= 50
+    t = compare(inp).set_index("statement")
+    assert t.loc["S1, sentence 31, marker 56: maximum y error (mm)", "verdict"] == "differs"
+    assert t.loc["S1, sentence 31, marker 56: maximum z error (mm)", "verdict"] == "same shape"
+    assert t.loc["S1: r56/r57, a sudden drop for the last value", "verdict"] == "same shape"
+    assert t.loc["S1: r57 (mm)", "verdict"] == "differs"            # 1.0 > epsilon
+    # 56 in the basis: the maxima cannot be compared
+    inp = paper_like_inputs()
+    inp.trajectory["S1"]["in_basis"] = True
+    t = compare(inp).set_index("statement")
+    assert t.loc["S1: marker 56 (jaw) is a secondary marker of the basis of ten",
+                 "verdict"] == "differs"
+    assert t.loc["S1, sentence 31, marker 56: maximum x error (mm)", "verdict"] == "not measured"
+    # nothing at all: every row says so, none is invented
+    empty = compare(Inputs())
+    assert len(empty) >= 40
+    assert set(empty["verdict"]) <= {"not measured", "reproduced"}
+    assert (empty["verdict"] == "reproduced").sum() == 1            # C(57, 10), computed
+
+
+def test_b_and_p_ordering_and_ratios():
+    inp = paper_like_inputs()
+    rec = inp.lip_reconstruction
+    rec.loc[(rec.view == "xy_all_points") & (rec.covariance == "10_modes"),
+            "mse_per_dof_model_units2"] = 1e-4          # frontal best: ordering breaks
+    t = compare(inp).set_index("statement")
+    assert t.loc["view ordering, 10 modes", "paper_value"] == "yz < xyz8 < xy"
+    assert t.loc["view ordering, 10 modes", "our_value"] == "xy < yz < xyz8"
+    assert t.loc["view ordering, 10 modes", "verdict"] == "differs"
+    assert t.loc["ratio xy / yz, 10 modes (frontal against profile)", "verdict"] == "differs"
+    assert t.loc["view ordering, full covariance", "verdict"] == "reproduced"
+
+
+def test_read_inputs_and_markdown(tmp_path, capsys):
+    inp = paper_like_inputs()
+    paths = {"selected": tmp_path / "sel.tsv", "r_values:S1": tmp_path / "r1.tsv",
+             "curve:S1": tmp_path / "missing.tsv"}
+    inp.selected.to_csv(paths["selected"], sep="\t", index=False)
+    inp.r_values["S1"].to_csv(paths["r_values:S1"], sep="\t", index=False)
+    got = read_inputs({k: str(v) for k, v in paths.items()})
+    assert got.selected["S1"].tolist()[:2] == ["40", "34"]
+    assert list(got.r_values) == ["S1"] and got.curves == {}
+    t = compare(got)
+    assert t.loc[t["statement"] == "S1, pivot 1", "output"].iloc[0] == str(paths["selected"])
+    md = to_markdown(t)
+    assert "| 1 | 40 → 40 ✓ |" in md and "S1: r56/r57" in md
+    f = tmp_path / "cmp.tsv"
+    t.to_csv(f, sep="\t", index=False)
+    assert main([str(f)]) == 0
+    assert capsys.readouterr().out == md
+    assert main([str(tmp_path / "none.tsv")]) == 1
+
+
+def test_figure(tmp_path):
+    from facemotion.plots.comparison import numeric_rows, plot_paper_comparison
+
+    t = compare(paper_like_inputs())
+    num = numeric_rows(t)
+    assert len(num) >= 10 and np.allclose(num["ratio"], 1.0, rtol=1e-2)
+    fig = plot_paper_comparison(t)
+    ax, bx = fig.axes[:2]
+    assert len(ax.get_yticklabels()) == len(num)
+    assert [x.get_text() for x in bx.get_yticklabels()] == list(TABLE_I)
+    with pytest.raises(Exception, match="paper comparison"):
+        plot_paper_comparison(t.drop(columns="verdict"))
