@@ -159,3 +159,13 @@ def test_figure(tmp_path):
     assert [x.get_text() for x in bx.get_yticklabels()] == list(TABLE_I)
     with pytest.raises(Exception, match="paper comparison"):
         plot_paper_comparison(t.drop(columns="verdict"))
+
+
+def test_eyelid_copy_coefficient_in_either_orientation():
+    inp = paper_like_inputs()
+    st = "S1: marker 13's fit coefficient on 11 (basis of ten)"
+    inp.coefficients_k10["S1"] = pd.DataFrame({"main_marker": ["40", "13"], "11": [0.0, 1.0]})
+    row = compare(inp).set_index("statement").loc[st]
+    assert row["verdict"] == "same shape" and row["our_value"] == "1.000 (11 on 13)"
+    inp.coefficients_k10["S1"] = pd.DataFrame({"main_marker": ["40", "11"], "13": [0.0, 0.7]})
+    assert compare(inp).set_index("statement").loc[st, "verdict"] == "differs"

@@ -83,6 +83,14 @@ def test_outputs_exist_with_sidecars(smoke_runs):
     manifest = pd.read_csv(res / "manifest.tsv", sep="\t", dtype=str)
     assert "results/S1/qr/r_values.tsv" in set(manifest["path"])
     assert (res / "lips" / "virtual" / "reconstruction.tsv").is_file()
+    # the papers against this study: every statement has a row, none without a verdict
+    cmp = pd.read_csv(res / "tables" / "paper_comparison.tsv", sep="\t", dtype=str,
+                      keep_default_na=False)
+    assert len(cmp) >= 40 and (cmp["verdict"] != "").all()
+    assert set(cmp["paper"]) == {"Lucero & Munhall 2008", "Basu & Pentland 1997"}
+    s1 = cmp[cmp["statement"] == "S1, pivot 1"].iloc[0]
+    assert s1["paper_value"] == "40 (lips)" and s1["verdict"] != "not measured"
+    assert (cmp[cmp["statement"].str.startswith("S2b")]["verdict"] == "not measured").all()
 
 
 def test_rerun_is_byte_identical(smoke_runs):
@@ -122,7 +130,8 @@ def test_report_builds_with_expected_entries(smoke_runs):
     names = zipfile.ZipFile(a / "results" / "report.zip").namelist()
     for expected in ("r_values.png", "sentence_sweep_plot.png", "regions_k4.png",
                      "error_curve_plot.png", "mesh.png", "reconstruction.tsv",
-                     "heldout_page.html", "heldout_still.png"):
+                     "heldout_page.html", "heldout_still.png",
+                     "paper_comparison.png"):
         assert any(n.endswith(expected) for n in names), expected
 
 

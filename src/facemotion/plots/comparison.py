@@ -86,14 +86,15 @@ def plot_paper_comparison(table: pd.DataFrame) -> Figure:
                             va="center", fontsize=8)
             left += vals
         bx.set_yticks(np.arange(len(order))[::-1], order)
-        bx.set_xlabel("Table I cells (first 16 pivots)")
+        bx.set_xlabel("cells (first 16 pivots)")
         bx.set_xlim(0, max(left.max(), 1))
         bx.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncols=2)
     else:
         bx.text(0.5, 0.5, "Table I not measured", ha="center", va="center",
                 transform=bx.transAxes)
         bx.set_axis_off()
-    bx.set_title("L&M Table I: same marker / same region / other", fontsize=10)
+    bx.set_title("L&M Table I: same marker (green),\nsame region (yellow), other (red)",
+                 fontsize=9)
     fig.suptitle("The papers' quantitative statements against this study "
                  "(results/tables/paper_comparison.tsv)", fontsize=11)
     return fig

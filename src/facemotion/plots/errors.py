@@ -1,4 +1,4 @@
-"""Held-out prediction error against k (paper Figs. 9-10) and a measured-vs-model trajectory."""
+"""Held-out prediction error against k (paper Fig. 10) and a marker's trajectory (Fig. 9)."""
 
 from __future__ import annotations
 
@@ -47,7 +47,8 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
     present, as a thin dotted line). Datasets overlaid.
 
     k = n (no secondary marker left) is not drawn (see :func:`without_all_main`); notes under
-    the panels say so, and list any k < n with exactly zero error (not on the log axis).
+    the panels say so, and list any k < n with (numerically) zero error: below 1e-9 of the
+    largest, e.g. an exactly copied marker, not drawn on the log axis.
     """
     require_tables(df_by_dataset, ("k", "mean_abs_error_mm", "rel_error_per_marker"),
                    "error curves")
@@ -62,11 +63,14 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
         if n_dropped is not None:
             all_main.setdefault(n_dropped, []).append(str(name))
         c, m = colour(d), MARKERS[d % len(MARKERS)]
-        pos = df["mean_abs_error_mm"].where(df["mean_abs_error_mm"] > 0)  # log axis
+        # log axis: an error below 1e-9 of the largest is numerically zero (an exact copy)
+        tiny = 1e-9 * float(df["mean_abs_error_mm"].max()) if len(df) else 0.0
+        pos = df["mean_abs_error_mm"].where(df["mean_abs_error_mm"] > tiny)
         ax_abs.plot(df["k"], pos, color=c, marker=m, ms=3.5, lw=1.4, label=name)
         for col, (_, ls) in _EXTRA.items():
             if col in df.columns and df[col].notna().any():
-                ax_abs.plot(df["k"], df[col].where(df[col] > 0), color=c, ls=ls, lw=0.9)
+                ax_abs.plot(df["k"], df[col].where(df[col] > 1e-9 * df[col].max()), color=c,
+                            ls=ls, lw=0.9)
                 if col not in extras_used:
                     extras_used.append(col)
         ax_rel.plot(df["k"], df["rel_error_per_marker"], color=c, marker=m, ms=3.5, lw=1.4,
@@ -74,7 +78,7 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
         if "rel_error_pooled" in df.columns:
             ax_rel.plot(df["k"], df["rel_error_pooled"], color=c, ls=":", lw=0.9)
             pooled = True
-        zk = df.loc[df["mean_abs_error_mm"] <= 0, "k"]
+        zk = df.loc[df["mean_abs_error_mm"] <= tiny, "k"]
         if len(zk):
             zero_k.append(f"{name}: k = {', '.join(str(int(v)) for v in zk)}")
     ax_abs.set_yscale("log")
@@ -84,7 +88,7 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
                      "error is undefined): " + "; ".join(
                          f"n = {n} ({', '.join(names)})" for n, names in all_main.items()))
     if zero_k:
-        notes.append("zero error, not on the log axis: " + "; ".join(zero_k))
+        notes.append("(numerically) zero error, not on the log axis: " + "; ".join(zero_k))
     if notes:
         fig.supxlabel("\n".join(notes), fontsize=7.5, color="0.3")
     ax_abs.set(xlabel="k (number of main markers)",
