@@ -330,9 +330,9 @@ def test_smoke_size_generic_design_and_recordings(tmp_path):
 def test_speed_of_a_full_session():
     import time
 
-    t0 = time.perf_counter()
+    t0 = time.process_time()                       # CPU time: robust to a busy machine
     simulate_subject("S2a", seed=0)
-    assert time.perf_counter() - t0 < 8.0          # ~1.5 s on an idle core
+    assert time.process_time() - t0 < 8.0          # ~2 s
 
 
 def test_bad_settings_name_the_setting():
