@@ -82,11 +82,13 @@ def block_study(tmp_path_factory):
     make_blocks(sentence_files, data / "takes", {"block1": [0, 1, 2], "block2": [3, 4, 5]})
     sheet = data / "subjects.tsv"
     sheet.write_text(
-        "subject\trecordings\tformat\thead_markers\texclude_markers\tsegments\n"
-        f"split\t{sim}/results/virtual/S1/S1_s*.c3d\tc3d\t{HEAD}\t{HEAD}\t\n"
-        f"events\ttakes/block*.c3d\tc3d\t{HEAD}\t{HEAD}\tevents:Sentence Start,Sentence End\n"
+        # the virtual S1 loses marker 13 after each sentence's first frame: copy 11 into it
+        "subject\trecordings\tformat\thead_markers\texclude_markers\tsegments\tcopy_markers\n"
+        f"split\t{sim}/results/virtual/S1/S1_s*.c3d\tc3d\t{HEAD}\t{HEAD}\t\t13=11\n"
+        f"events\ttakes/block*.c3d\tc3d\t{HEAD}\t{HEAD}\tevents:Sentence Start,Sentence End"
+        "\t13=11\n"
         f"textgrid\ttakes/block*.c3d\tc3d\t{HEAD}\t{HEAD}\t"
-        "textgrid:takes/{stem}.TextGrid#sentence\n")
+        "textgrid:takes/{stem}.TextGrid#sentence\t13=11\n")
     work = tmp_path_factory.mktemp("run")
     targets = [f"results/{d}/{rel}" for d in DATASETS
                for rel in ("data/displacements.npz", "qr/rank.tsv")]
