@@ -1,4 +1,4 @@
-"""Marker ranking by QR with column pivoting (Lucero & Munhall 2008, Sec. II.C).
+"""Marker ranking by QR with column pivoting (Lucero & Munhall 2008, Sec. III).
 
 The displacement matrix A (3F x n, frame-major rows, one column per marker, mm) is factored as
 

@@ -1,8 +1,8 @@
-"""Predicting all markers from k main markers (Lucero & Munhall 2008, Sec. II.D).
+"""Predicting all markers from k main markers (Lucero & Munhall 2008, Sec. III, eqs. 2-4; Sec. V).
 
 With A P = Q R partitioned after the first k pivots,
 
-    R = [[R11, R12], [0, R22]],      A_s ~= A_m X,   X = R11^-1 R12            (paper eq. for X)
+    R = [[R11, R12], [0, R22]],      A_s ~= A_m X,   X = R11^-1 R12            (eqs. 1, 4)
 
 where A_m holds the k main (pivot) markers and A_s the n - k secondary ones.  X is the least
 squares solution on the training data and its residual is ||A_s - A_m X||_F = ||R22||_F.

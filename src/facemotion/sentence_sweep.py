@@ -1,4 +1,4 @@
-"""How many sentences does the marker ranking need?  (Lucero & Munhall 2008, Sec. III.B)
+"""How many sentences does the marker ranking need?  (Lucero & Munhall 2008, Sec. IV, Fig. 3)
 
 Sentences are added one at a time and the first ``n_pivots`` pivots of A P = Q R are recomputed
 after each addition.  Refactoring the growing matrix at every step costs O(S^2) passes over the
