@@ -105,3 +105,12 @@ def test_copy_markers_column(tmp_path):
     sheet = write_sheet(tmp_path, ["S1\t\tc3d\tH1,H2,H3\t\tS1\t13"], header=header)
     with pytest.raises(InputError, match=r"row 2: copy_markers: '13' must look like"):
         read_subject_sheet(sheet)
+
+
+def test_s1_design_copies_11_into_13_by_default(tmp_path):
+    header = HEADER.rstrip("\n") + "\tsimulate\n"
+    sheet = write_sheet(tmp_path, ["S1\t\tc3d\tH1,H2,H3\t\tS1", "S2a\t\tc3d\tH1,H2,H3\t\tS2a"],
+                        header=header)
+    subjects = read_subject_sheet(sheet)
+    assert subjects["S1"].copy_markers == [("13", "11")]
+    assert subjects["S2a"].copy_markers == []

@@ -149,6 +149,10 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
                              f"(use one of {', '.join(UNITS)})")
         design = _cell(row, "simulate")
         copy_markers = parse_copy_markers(_cell(row, "copy_markers"), f"{where}: copy_markers")
+        if design == "S1" and not copy_markers:
+            # the S1 design records marker 13 only in each sentence's first frame; the
+            # authors filled it by copying 11 (synth.py), so that is its sheet's default
+            copy_markers = [("13", "11")]
         seed = _int_cell(row, "seed", where, 0)
         talker_seed = _int_cell(row, "talker_seed", where, None)
         n_sentences = _int_cell(row, "n_sentences", where, None)
