@@ -1,12 +1,12 @@
 # Two commands do everything on a fresh machine:
-#   make study   # install (first time) and run the whole default study -> results/
+#   make study   # install (first time) and run the whole default study -> results/paper/
 #   make test    # install (first time, with dev tools) and run the tests
 PY ?= python3.11
 VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= 2
 
-.PHONY: study test real smoke report bench lint venv clean constraints docs
+.PHONY: study test real smoke talkers report real-report smoke-report talkers-report bench lint venv clean constraints docs
 
 $(BIN)/python:
 	@command -v $(PY) >/dev/null 2>&1 || { echo "need $(PY) (Python 3.11)"; exit 1; }
@@ -30,8 +30,16 @@ real: venv
 smoke: venv
 	$(BIN)/snakemake --cores $(CORES) --configfile config/smoke.yaml
 
+talkers: venv
+	$(BIN)/snakemake --cores $(CORES) --configfile config/talkers.yaml
+
+# Each config is its own study under results/<study>/ with its own report:
+# make report (results/paper/report.html), make real-report (results/real/report.html), ...
 report: venv
-	$(BIN)/snakemake --cores $(CORES) --report results/report.html
+	$(BIN)/snakemake --cores $(CORES) --report results/paper/report.html
+
+real-report smoke-report talkers-report: %-report: venv
+	$(BIN)/snakemake --cores $(CORES) --configfile config/$*.yaml --report results/$*/report.html
 
 test: venv
 	$(BIN)/python -m pytest -q

@@ -1,5 +1,6 @@
 # facemotion: how the human face moves during speech.
 # Lucero & Munhall (2008) kinematic regions and Basu & Pentland (1997) lip model.
+# Every output of a study goes under results/<study>/ (the `study` setting; <results> in paths).
 
 
 report: "workflow/report/workflow.rst"
@@ -18,7 +19,23 @@ include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/compare.smk"
 
 
+# Tiny aggregation rules run in the main process's machine, never as cluster jobs of their own.
+localrules:
+    all,
+    summarise_study,
+    write_manifest,
+
+
 rule all:
     default_target: True
     input:
         final_outputs(),
+    message:
+        "all: study '{STUDY}' complete".format(STUDY=STUDY)
+
+
+onsuccess:
+    print_closing_summary()
+
+
+_PARSE.done()

@@ -123,7 +123,8 @@ def test_rank_prints_the_workflows_first_pivots_on_animface(tmp_path):
         "datasets:\n  animface: {subject: animface, train: '1-2'}\n"
         "  animface_jaw: {subject: animface, train: '2', heldout: []}\n"
         "lips: {subjects: {}}\n")
-    targets = [f"results/{d}/qr/r_values.tsv" for d in ("animface", "animface_jaw")]
+    # the study is named after the config file: results/config/
+    targets = [f"results/config/{d}/qr/r_values.tsv" for d in ("animface", "animface_jaw")]
     proc = subprocess.run(
         [sys.executable, "-m", "snakemake", *targets, "-s", str(REPO / "Snakefile"),
          "--directory", str(tmp_path), "--cores", "2", "--configfile",

@@ -30,11 +30,12 @@ use rule * from facemotion as facemotion_*
 rule all:
     default_target: True
     input:
-        "results/T1/qr/r_values.tsv",
-        "results/tables/sweep_grid.tsv",
+        "results/host/T1/qr/r_values.tsv",
+        "results/host/tables/sweep_grid.tsv",
 """
 
 CONFIG = """\
+study: host
 subjects: config/talkers.tsv
 default_datasets: true
 lips: {subjects: {}}
@@ -65,24 +66,26 @@ def test_workflow_runs_as_a_module_of_another_project(tmp_path):
     dry = snakemake(tmp_path, "-n")
     assert "facemotion_rank_markers" in dry.stdout + dry.stderr
     snakemake(tmp_path)
-    r = pd.read_csv(tmp_path / "results" / "T1" / "qr" / "r_values.tsv", sep="\t")
+    r = pd.read_csv(tmp_path / "results" / "host" / "T1" / "qr" / "r_values.tsv", sep="\t")
     assert len(r) == 57 and r["marker"].is_unique  # the S1 design's 57 face markers
-    sweep = pd.read_csv(tmp_path / "results" / "tables" / "sweep_grid.tsv", sep="\t")
+    sweep = pd.read_csv(tmp_path / "results" / "host" / "tables" / "sweep_grid.tsv", sep="\t")
     assert sweep["point"].tolist() == ["k~2", "k~3"]
     assert sweep["k"].tolist() == [2, 3]
     # each point's file is named by its values
-    assert sorted(p.name for p in (tmp_path / "results" / "sweeps" / "grid" / "T1")
+    assert sorted(p.name for p in (tmp_path / "results" / "host" / "sweeps" / "grid" / "T1")
                   .glob("*.tsv")) == ["k~2.tsv", "k~3.tsv"]
-    assert not (tmp_path / "results" / "virtual" / "S1").exists()  # only the host's subjects
+    assert not (tmp_path / "results" / "host" / "virtual" / "S1").exists()  # the host's only
 
 
 def test_module_finds_its_own_files_from_another_directory(tmp_path):
     """A sheet path that is not in the host project resolves in the workflow's repository."""
     (tmp_path / "config").mkdir()
     (tmp_path / "Snakefile").write_text(HOST.format(snakefile=REPO / "Snakefile").replace(
-        '        "results/tables/sweep_grid.tsv",\n', ""))
+        '        "results/host/tables/sweep_grid.tsv",\n', "").replace("results/host/",
+                                                                   "results/smoke_subjects/"))
     (tmp_path / "config" / "facemotion.yaml").write_text(
         "subjects: config/smoke_subjects.tsv\nlips: {subjects: {}}\n")
     assert not (tmp_path / "config" / "smoke_subjects.tsv").exists()
-    dry = snakemake(tmp_path, "-n", "results/S1/qr/r_values.tsv")
+    # the study is named after the host's sheet
+    dry = snakemake(tmp_path, "-n", "results/smoke_subjects/S1/qr/r_values.tsv")
     assert "facemotion_simulate_subject" in dry.stdout + dry.stderr

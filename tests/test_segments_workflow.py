@@ -74,8 +74,8 @@ def make_blocks(sentence_files, take_dir, blocks):
 @pytest.fixture(scope="module")
 def block_study(tmp_path_factory):
     sim = tmp_path_factory.mktemp("sim")
-    run_snakemake(sim, "results/virtual/S1")
-    sentence_files = sorted((sim / "results" / "virtual" / "S1").glob("S1_s*.c3d"))
+    run_snakemake(sim, "results/smoke/virtual/S1")
+    sentence_files = sorted((sim / "results" / "smoke" / "virtual" / "S1").glob("S1_s*.c3d"))
     assert len(sentence_files) == 6
     data = tmp_path_factory.mktemp("lab")
     (data / "takes").mkdir()
@@ -84,17 +84,17 @@ def block_study(tmp_path_factory):
     sheet.write_text(
         # the virtual S1 loses marker 13 after each sentence's first frame: copy 11 into it
         "subject\trecordings\tformat\thead_markers\texclude_markers\tsegments\tcopy_markers\n"
-        f"split\t{sim}/results/virtual/S1/S1_s*.c3d\tc3d\t{HEAD}\t{HEAD}\t\t13=11\n"
+        f"split\t{sim}/results/smoke/virtual/S1/S1_s*.c3d\tc3d\t{HEAD}\t{HEAD}\t\t13=11\n"
         f"events\ttakes/block*.c3d\tc3d\t{HEAD}\t{HEAD}\tevents:Sentence Start,Sentence End"
         "\t13=11\n"
         f"textgrid\ttakes/block*.c3d\tc3d\t{HEAD}\t{HEAD}\t"
         "textgrid:takes/{stem}.TextGrid#sentence\t13=11\n")
     work = tmp_path_factory.mktemp("run")
-    targets = [f"results/{d}/{rel}" for d in DATASETS
+    targets = [f"results/smoke/{d}/{rel}" for d in DATASETS
                for rel in ("data/displacements.npz", "qr/rank.tsv")]
     run_snakemake(work, *targets,
                   extra_config=f"subjects: {sheet}\ndefault_datasets: true\nsweeps: {{}}\n")
-    return work / "results"
+    return work / "results" / "smoke"
 
 
 def test_cut_takes_give_the_same_A_as_split_files(block_study):

@@ -1,4 +1,5 @@
-"""The smoke workflow end to end: outputs with sidecars, byte-identical reruns, the report.
+"""The smoke workflow end to end: outputs with sidecars, byte-identical reruns, the report,
+and a second study beside it in the same directory.
 
 Runs `snakemake` on config/smoke.yaml in two fresh directories (tiny virtual subjects and a
 tiny lip model) and compares every output's checksum between the two runs.
@@ -36,10 +37,10 @@ def run_snakemake(workdir, *args, check=True, extra_config=None):
     return proc
 
 
-def checksums(root: Path) -> dict[str, str]:
+def checksums(root: Path, study: str = "smoke") -> dict[str, str]:
     out = {}
-    for p in sorted((root / "results").rglob("*")):
-        if p.is_file() and "logs" not in p.parts and p.suffix != ".html":
+    for p in sorted((root / "results" / study).rglob("*")):
+        if p.is_file() and not {"logs", "benchmarks"} & set(p.parts) and p.suffix != ".html":
             out[str(p.relative_to(root))] = hashlib.sha256(p.read_bytes()).hexdigest()
     return out
 
@@ -48,14 +49,16 @@ def checksums(root: Path) -> dict[str, str]:
 def smoke_runs(tmp_path_factory):
     a = tmp_path_factory.mktemp("run_a")
     b = tmp_path_factory.mktemp("run_b")
-    run_snakemake(a)
+    proc = run_snakemake(a)
+    (a / "terminal.txt").write_text(proc.stdout + proc.stderr)
     run_snakemake(b)
     return a, b
 
 
 def test_outputs_exist_with_sidecars(smoke_runs):
     a, _ = smoke_runs
-    res = a / "results"
+    assert [p.name for p in (a / "results").iterdir()] == ["smoke"]  # the study's own root
+    res = a / "results" / "smoke"
     for ds in ("S1", "S2a"):
         for rel in ("data/displacements.npz", "data/gap_report.tsv", "qr/r_values.tsv",
                     "qr/rank.tsv", "qr/redundancy.tsv", "qr/sentence_sweep.tsv",
@@ -81,7 +84,8 @@ def test_outputs_exist_with_sidecars(smoke_runs):
     table = pd.read_csv(res / "tables" / "selected_markers.tsv", sep="\t", dtype=str)
     assert list(table.columns) == ["order", "S1", "S2a"]
     manifest = pd.read_csv(res / "manifest.tsv", sep="\t", dtype=str)
-    assert "results/S1/qr/r_values.tsv" in set(manifest["path"])
+    assert "results/smoke/S1/qr/r_values.tsv" in set(manifest["path"])
+    assert "results/smoke/summary.txt" in set(manifest["path"])
     assert (res / "lips" / "virtual" / "reconstruction.tsv").is_file()
     # the papers against this study: every statement has a row, none without a verdict
     cmp = pd.read_csv(res / "tables" / "paper_comparison.tsv", sep="\t", dtype=str,
@@ -126,8 +130,8 @@ def test_figure_formats_setting_adds_vector_files(smoke_runs):
 
 def test_report_builds_with_expected_entries(smoke_runs):
     a, _ = smoke_runs
-    run_snakemake(a, "--report", "results/report.zip")
-    names = zipfile.ZipFile(a / "results" / "report.zip").namelist()
+    run_snakemake(a, "--report", "results/smoke/report.zip")
+    names = zipfile.ZipFile(a / "results" / "smoke" / "report.zip").namelist()
     for expected in ("r_values.png", "sentence_sweep_plot.png", "regions_k4.png",
                      "error_curve_plot.png", "mesh.png", "reconstruction.tsv",
                      "heldout_page.html", "heldout_still.png",
@@ -146,3 +150,49 @@ def test_bad_config_value_is_rejected_at_parse_time(tmp_path):
         assert proc.returncode != 0, bad
         assert name in proc.stdout + proc.stderr, (bad, proc.stderr[-2000:])
         assert not (tmp_path / "results").exists()
+
+
+def test_terminal_output_is_short_and_ends_with_a_summary(smoke_runs):
+    a, _ = smoke_runs
+    text = (a / "terminal.txt").read_text()
+    assert "Shell command" not in text
+    longest = max(text.splitlines(), key=len)
+    assert len(longest) < 300, longest[:200]
+    tail = text[text.index("facemotion study 'smoke'"):]
+    assert "every output is under results/smoke/" in tail
+    summary = (a / "results" / "smoke" / "summary.txt").read_text()
+    assert summary in tail
+    # the headline numbers are the tables' own
+    ranks = pd.read_csv(a / "results" / "smoke" / "tables" / "rank_summary.tsv", sep="\t")
+    s1 = ranks[ranks["dataset"] == "S1"].sort_values("tolerance_mm")
+    assert " / ".join(str(r) for r in s1["epsilon_rank"]) in summary
+    sel = pd.read_csv(a / "results" / "smoke" / "tables" / "selected_markers.tsv", sep="\t",
+                      dtype=str)
+    assert " ".join(sel["S1"][:5]) in summary
+    assert "--report results/smoke/report.html" in tail
+
+
+def test_two_studies_in_one_directory_never_overwrite_each_other(smoke_runs):
+    """A second study (its own name and settings) beside the smoke study, in either order."""
+    _, b = smoke_runs
+    before = checksums(b, "smoke")
+    other = ("study: other\nfit:\n  k: [5]\nanimation:\n  enabled: false\n"
+             "lips:\n  subjects: {}\n")
+    run_snakemake(b, extra_config=other)
+    assert sorted(p.name for p in (b / "results").iterdir()) == ["other", "smoke"]
+    assert checksums(b, "smoke") == before  # the first study is untouched
+    assert (b / "results" / "other" / "S1" / "fit" / "coefficients_k5.tsv").is_file()
+    assert not (b / "results" / "other" / "S1" / "fit" / "coefficients_k4.tsv").exists()
+    # both are complete: neither run made the other out of date
+    for extra in (None, other):
+        proc = run_snakemake(b, "-n", extra_config=extra)
+        assert "Nothing to be done" in proc.stdout + proc.stderr
+    # each study's manifest and report hold its own outputs only
+    for study, extra in (("smoke", None), ("other", other)):
+        manifest = pd.read_csv(b / "results" / study / "manifest.tsv", sep="\t")
+        assert manifest["path"].str.startswith(f"results/{study}/").all()
+        run_snakemake(b, "--report", f"results/{study}/report.zip", extra_config=extra)
+        names = zipfile.ZipFile(b / "results" / study / "report.zip").namelist()
+        mine, theirs = (4, 5) if study == "smoke" else (5, 4)
+        assert any(n.endswith(f"regions_k{mine}.png") for n in names), study
+        assert not any(n.endswith(f"regions_k{theirs}.png") for n in names), study

@@ -192,7 +192,7 @@ def study(snakemake_args) -> None:
     Every argument is passed to snakemake unchanged, e.g. `facemotion study --configfile
     config/real.yaml`, `facemotion study -n` (dry run), `facemotion study -- --help`
     (snakemake's own options). Without --cores/--jobs/--profile it runs on 2 cores. Outputs go
-    to results/ under the current directory (or --directory). Needs the workflow extra:
+    to results/<study>/ under the current directory (or --directory). Needs the workflow extra:
     pip install 'facemotion[workflow]'.
     """
     if importlib.util.find_spec("snakemake") is None:

@@ -355,8 +355,9 @@ if ((local_rc != 0)); then
   exit "$EXIT_LOCAL_RUN"
 fi
 
-checksums() { # sha256 of every result except logs and HTML reports, paths relative to $1
-  (cd "$1" && find results -type f ! -path 'results/logs/*' ! -name '*.html' -print0 |
+checksums() { # sha256 of every result except logs, benchmarks and HTML reports, relative to $1
+  (cd "$1" && find results -type f ! -path 'results/logs/*' ! -path 'results/*/logs/*' \
+    ! -path 'results/*/benchmarks/*' ! -name '*.html' -print0 |
     LC_ALL=C sort -z | xargs -0 -r sha256sum)
 }
 checksums "$SLURM_DIR" >"$TMP/slurm.sha256"
@@ -384,7 +385,7 @@ echo "==== SLURM smoke test summary ($MODE workflow) ===="
 echo "cluster:          $(sinfo -h -o '%P %D node(s) %c CPUs %m MB' | head -1), $(slurmctld -V)"
 echo "SLURM run:        exit $slurm_rc, ${SLURM_SECONDS}s, $N_SUBMITTED jobs via sbatch, $N_SLURM_COMPLETED COMPLETED in squeue, $N_JOBCOMP in jobcomp"
 echo "local run:        exit $local_rc, ${LOCAL_SECONDS}s"
-echo "files compared:   $N_FILES (results/ minus results/logs and *.html)"
+echo "files compared:   $N_FILES (results/ minus logs, benchmarks and *.html)"
 echo "total time:       $(($(date +%s) - T0))s"
 if ((${#failures[@]})); then
   printf 'FAIL: %s\n' "${failures[@]}"

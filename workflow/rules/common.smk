@@ -1,5 +1,6 @@
 # Configuration, subject sheet and datasets; helpers that list each stage's outputs.
 import os
+import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -7,6 +8,14 @@ import yaml
 from snakemake.utils import min_version
 
 from facemotion.errors import InputError
+from facemotion.invocation import (
+    ParseGuard,
+    invocation_dir,
+    remember_invocation,
+    resolve_path,
+    same_study_command,
+)
+from facemotion.study import closing_message, study_name
 from facemotion.settings import (
     DataCounts,
     check_lip_frames,
@@ -19,7 +28,7 @@ from facemotion.settings import (
 )
 from facemotion.subjects import read_subject_sheet, resolve_datasets
 
-min_version("9.0")
+min_version("9.13")  # pathvars (<results>)
 
 # The repository of this workflow, from this file's folder (workflow.basedir is the *main*
 # Snakefile's folder: another project's when this workflow is used as a module; source_path
@@ -27,13 +36,24 @@ min_version("9.0")
 _HERE = Path(workflow.current_basedir.get_path_or_uri(secret_free=True))
 REPO = _HERE.parents[1] if _HERE.is_dir() else None
 
+# A failed parse (a bad setting, a missing sheet) leaves no .snakemake/ behind.
+_PARSE = ParseGuard(workflow.logger_manager.get_logfile())
+# Where the user typed the command: a relative path given with --config is read from there.
+_CLI = dict(workflow.config_settings.config)
+INVOCATION_DIR = invocation_dir(workflow.rundir, workflow.overwrite_workdir)
+remember_invocation(INVOCATION_DIR)
+
 # With no --configfile the default study's config is the base; --config values override it.
 # `--config subjects=SHEET` alone runs the default settings on your sheet, one dataset per
-# subject (the default config's paper datasets only make sense for its own sheet).
+# subject (the default config's paper datasets only make sense for its own sheet), as the
+# study named after the sheet.
+_OWN_SHEET = "subjects" in config  # a sheet from --config, a config file or a host workflow
 if not workflow.config_settings.configfiles:
     _user = dict(config)
     with open(workflow.source_path("../../config/config.yaml")) as _f:
         _base = yaml.safe_load(_f)
+    if "subjects" in _user:
+        _base["study"] = None  # named after the sheet below, unless --config study=NAME
     if "subjects" in _user and "datasets" not in _user:
         _base.pop("datasets", None)
         _base["default_datasets"] = True
@@ -49,28 +69,56 @@ if not workflow.config_settings.configfiles:
 # Parse-time errors (a setting, the sheet, the data's counts): one line, exit status 1.
 with exit_on_error():
     validate_config(config, workflow.source_path("../schemas/config.schema.yaml"))
+    SHEET = resolve_path(
+        config["subjects"],
+        "subjects",
+        from_command_line="subjects" in _CLI,
+        inv=INVOCATION_DIR,
+        repo=REPO,
+        what="subject sheet",
+    )
+    SHARED_DATA = (
+        resolve_path(
+            config["shared_data"],
+            "shared_data",
+            from_command_line="shared_data" in _CLI,
+            inv=INVOCATION_DIR,
+            repo=REPO,
+            what="shared-data folder",
+            must_exist=False,
+        )
+        if config["shared_data"]
+        else (REPO or Path.cwd()).parent / "shared" / "data"
+    )
+    STUDY = study_name(
+        config["study"], workflow.config_settings.configfiles, SHEET, _OWN_SHEET
+    )
 
 
-def _resolve(path):
-    """A path from the config: as given (relative to the working directory), else the repo's."""
-    p = Path(path)
-    if p.is_absolute() or p.exists():
-        return p
-    if REPO is not None and (REPO / p).exists():
-        return REPO / p
-    return p
+# Every output of this study goes under results/<study>/ (<results> in the rules' paths), so
+# two studies never overwrite each other. RESULTS is the same folder for params and scripts.
+pathvars:
+    results=f"results/{STUDY}",
 
 
-SHARED_DATA = Path(
-    config["shared_data"] or (REPO or Path.cwd()).parent / "shared" / "data"
-)
-SHEET = _resolve(config["subjects"])
+RESULTS = workflow.pathvars.apply("<results>")
+SKIPPED = []  # parts of the study left out, each said in one line (and in the summary)
+
 with exit_on_error():
     SUBJECTS = read_subject_sheet(
-        SHEET, shared_data=SHARED_DATA, virtual_dir="results/virtual"
+        SHEET, shared_data=SHARED_DATA, virtual_dir=f"{RESULTS}/virtual"
     )
-    for _ls, _spec in config["lips"]["subjects"].items():
+    for _ls, _spec in list(config["lips"]["subjects"].items()):
         if _spec["source"] == "grid" and not (SHARED_DATA / "grid").is_dir():
+            if _spec.get("optional"):
+                # the default study: only this lip subject reads the shared data
+                SKIPPED.append(
+                    f"lip subject {_ls}: it reads the GRID clips in {SHARED_DATA}/grid, which "
+                    "is not there (set shared_data to include it)"
+                )
+                print(f"facemotion: skipped {SKIPPED[-1]}", file=sys.stderr)
+                del config["lips"]["subjects"][_ls]
+                continue
             raise InputError(
                 f"setting lips.subjects.{_ls}: the GRID clips are read from "
                 f"{SHARED_DATA}/grid, which does not exist; set shared_data or remove this "
@@ -160,26 +208,47 @@ def meta(path):
 def all_outputs():
     out = []
     for d in DATASETS:
-        base = f"results/{d}"
+        base = f"<results>/{d}"
         out += [f"{base}/data/displacements.npz", f"{base}/data/gap_report.tsv"]
         out += [f"{base}/qr/r_values.tsv", f"{base}/qr/rank.tsv"]
         out += [f"{base}/qr/redundancy.tsv", f"{base}/qr/stability.tsv"]
         out += [f"{base}/qr/optimality.tsv"]
         out += [f"{base}/fit/coefficients_k{k}.tsv" for k in config["fit"]["k"]]
     for d in EVAL_DATASETS:
-        out += [f"results/{d}/eval/error_curve.tsv"]
+        out += [f"<results>/{d}/eval/error_curve.tsv"]
         if config["animation"]["enabled"]:
-            out += [f"results/{d}/anim/heldout_still.png"]
-    out += ["results/tables/selected_markers.tsv", "results/figures/r_values.png"]
+            out += [f"<results>/{d}/anim/heldout_still.png"]
+    out += ["<results>/tables/selected_markers.tsv", "<results>/figures/r_values.png"]
     if EVAL_DATASETS:
-        out += ["results/figures/error_curves.png"]
+        out += ["<results>/figures/error_curves.png"]
     for ls in config["lips"]["subjects"]:
-        out += [f"results/lips/{ls}/reconstruction.tsv"]
-    return out + sweep_outputs() + comparison_outputs()
+        out += [f"<results>/lips/{ls}/reconstruction.tsv"]
+    return out + sweep_outputs() + comparison_outputs() + ["<results>/summary.txt"]
 
 
 def final_outputs():
-    return all_outputs() + ["results/manifest.tsv"]
+    return all_outputs() + ["<results>/manifest.tsv"]
+
+
+def print_closing_summary():
+    """After a successful run (onsuccess): the summary, and how to open the report."""
+    command = same_study_command(sys.argv, "--report", f"{RESULTS}/report.html")
+    text = closing_message(RESULTS, workflow.start_time.timestamp(), command)
+    if text:
+        print(text, flush=True)
+
+
+def summary_inputs(wildcards):
+    inp = {
+        "lips": [
+            f"<results>/lips/{ls}/reconstruction.tsv"
+            for ls in config["lips"]["subjects"]
+        ]
+    }
+    if DATASETS:
+        inp["rank_summary"] = "<results>/tables/rank_summary.tsv"
+        inp["selected"] = "<results>/tables/selected_markers.tsv"
+    return inp
 
 
 def simulated_subject_params(wildcards):
@@ -196,12 +265,15 @@ def simulated_subject_params(wildcards):
 def load_inputs(wildcards):
     subj = SUBJECTS[DATASETS[wildcards.dataset].subject]
     if subj.simulate:
-        return [f"results/virtual/{subj.id}"]
+        return [f"<results>/virtual/{subj.id}"]
     return subj.recordings + subj.segment_sources
 
 
 def lip_params(wildcards):
     spec = dict(config["lips"]["subjects"][wildcards.lip_subject])
+    spec.pop(
+        "optional", None
+    )  # whether to skip it without the shared data: not an input
     lips = config["lips"]
     return {
         "subject": spec,
@@ -227,7 +299,7 @@ def lip_inputs(wildcards):
             ],
             "mesh": str(SHARED_DATA / "mesh" / "canonical_face_model.obj"),
         }
-    return {"tracks": [f"results/lips/{wildcards.lip_subject}/tracks.trc"]}
+    return {"tracks": [f"<results>/lips/{wildcards.lip_subject}/tracks.trc"]}
 
 
 # ---- virtual talkers (sweep over the generator's talker seed) ----
@@ -247,7 +319,7 @@ with exit_on_error():
         SUBJECTS[_sid] = Subject(
             id=_sid,
             recordings=[
-                f"results/virtual/{_sid}/{_sid}_s{j + 1:02d}.c3d" for j in range(_n)
+                f"{RESULTS}/virtual/{_sid}/{_sid}_s{j + 1:02d}.c3d" for j in range(_n)
             ],
             format="c3d",
             head_markers=_head,
@@ -324,16 +396,16 @@ def sweep_point_files(wildcards):
     """One table per dataset and point, named by the point's values (sweeps.point_name)."""
     sw = SWEEPS[wildcards.sweep]
     return [
-        f"results/sweeps/{wildcards.sweep}/{d}/{name}.tsv"
+        f"<results>/sweeps/{wildcards.sweep}/{d}/{name}.tsv"
         for d in sw["datasets"]
         for name in sw["points"]
     ]
 
 
 def sweep_outputs():
-    out = [f"results/tables/sweep_{name}.tsv" for name in SWEEPS]
+    out = [f"<results>/tables/sweep_{name}.tsv" for name in SWEEPS]
     if TALKERS:
-        out.append("results/tables/talkers.tsv")
+        out.append("<results>/tables/talkers.tsv")
     return out
 
 
@@ -356,7 +428,7 @@ COMPARISON_LIP_SUBJECT = (
 def comparison_outputs():
     if not COMPARISON_DATASETS and COMPARISON_LIP_SUBJECT is None:
         return []
-    return ["results/tables/paper_comparison.tsv"]
+    return ["<results>/tables/paper_comparison.tsv"]
 
 
 def comparison_inputs(wildcards):
@@ -364,18 +436,18 @@ def comparison_inputs(wildcards):
     trajectory and (when k = 10 is fitted) coefficients."""
     inp = {}
     if DATASETS:
-        inp["selected"] = "results/tables/selected_markers.tsv"
-        inp["rank_summary"] = "results/tables/rank_summary.tsv"
+        inp["selected"] = "<results>/tables/selected_markers.tsv"
+        inp["rank_summary"] = "<results>/tables/rank_summary.tsv"
     for label, d in COMPARISON_DATASETS.items():
-        inp[f"r_values__{d}"] = f"results/{d}/qr/r_values.tsv"
-        inp[f"stability__{d}"] = f"results/{d}/qr/stability.tsv"
+        inp[f"r_values__{d}"] = f"<results>/{d}/qr/r_values.tsv"
+        inp[f"stability__{d}"] = f"<results>/{d}/qr/stability.tsv"
         if d in EVAL_DATASETS:
-            inp[f"curve__{d}"] = f"results/{d}/eval/error_curve.tsv"
-            inp[f"trajectory__{d}"] = f"results/{d}/eval/trajectory_errors.tsv"
+            inp[f"curve__{d}"] = f"<results>/{d}/eval/error_curve.tsv"
+            inp[f"trajectory__{d}"] = f"<results>/{d}/eval/trajectory_errors.tsv"
         if 10 in config["fit"]["k"]:
-            inp[f"coefficients__{d}"] = f"results/{d}/fit/coefficients_k10.tsv"
+            inp[f"coefficients__{d}"] = f"<results>/{d}/fit/coefficients_k10.tsv"
     if COMPARISON_LIP_SUBJECT is not None:
         ls = COMPARISON_LIP_SUBJECT
-        inp["lip_reconstruction"] = f"results/lips/{ls}/reconstruction.tsv"
-        inp["lip_counts"] = f"results/lips/{ls}/model_counts.tsv"
+        inp["lip_reconstruction"] = f"<results>/lips/{ls}/reconstruction.tsv"
+        inp["lip_counts"] = f"<results>/lips/{ls}/model_counts.tsv"
     return inp

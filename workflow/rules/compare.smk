@@ -1,21 +1,21 @@
-# The papers' quantitative statements beside ours (results/tables/paper_comparison.tsv).
+# The papers' quantitative statements beside ours (results/<study>/tables/paper_comparison.tsv).
 
 
 rule compare_with_papers:
     input:
         unpack(comparison_inputs),
     output:
-        table="results/tables/paper_comparison.tsv",
-        meta="results/tables/paper_comparison.meta.json",
+        table="<results>/tables/paper_comparison.tsv",
+        meta="<results>/tables/paper_comparison.meta.json",
         png=report(
-            "results/figures/paper_comparison.png",
+            "<results>/figures/paper_comparison.png",
             caption="../report/paper_comparison.rst",
             category="0. Summary",
         ),
-        pdf="results/figures/paper_comparison.pdf",
-        fig_meta="results/figures/paper_comparison.meta.json",
+        pdf="<results>/figures/paper_comparison.pdf",
+        fig_meta="<results>/figures/paper_comparison.meta.json",
     log:
-        "results/logs/compare_with_papers.log",
+        "<results>/logs/compare_with_papers.log",
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -5,22 +5,22 @@ rule load_dataset:
     input:
         load_inputs,
     output:
-        npz="results/{dataset}/data/displacements.npz",
-        npz_meta="results/{dataset}/data/displacements.meta.json",
-        gaps="results/{dataset}/data/gap_report.tsv",
-        gaps_meta="results/{dataset}/data/gap_report.meta.json",
-        sentences="results/{dataset}/data/sentences.tsv",
-        sentences_meta="results/{dataset}/data/sentences.meta.json",
+        npz="<results>/{dataset}/data/displacements.npz",
+        npz_meta="<results>/{dataset}/data/displacements.meta.json",
+        gaps="<results>/{dataset}/data/gap_report.tsv",
+        gaps_meta="<results>/{dataset}/data/gap_report.meta.json",
+        sentences="<results>/{dataset}/data/sentences.tsv",
+        sentences_meta="<results>/{dataset}/data/sentences.meta.json",
         gap_png=report(
-            "results/{dataset}/data/gaps.png",
+            "<results>/{dataset}/data/gaps.png",
             caption="../report/gaps.rst",
             category="1. Data",
             subcategory="{dataset}",
         ),
-        gap_more=fig_more("results/{dataset}/data/gaps"),
-        gap_fig_meta="results/{dataset}/data/gaps.meta.json",
+        gap_more=fig_more("<results>/{dataset}/data/gaps"),
+        gap_fig_meta="<results>/{dataset}/data/gaps.meta.json",
     log:
-        "results/logs/load_dataset/{dataset}.log",
+        "<results>/logs/load_dataset/{dataset}.log",
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -33,5 +33,7 @@ rule load_dataset:
         gaps=config["gaps"],
         checks=config["checks"],
         neutral=config["neutral"],
+    message:
+        "load_dataset {wildcards.dataset}: files -> head-aligned, gap-filled displacement matrix A"
     script:
         "../../scripts/load_dataset.py"

@@ -4,11 +4,11 @@
 
 rule simulate_lip_talker:
     output:
-        tracks="results/lips/{lip_subject}/tracks.trc",
-        truth="results/lips/{lip_subject}/truth.npz",
-        truth_meta="results/lips/{lip_subject}/truth.meta.json",
+        tracks="<results>/lips/{lip_subject}/tracks.trc",
+        truth="<results>/lips/{lip_subject}/truth.npz",
+        truth_meta="<results>/lips/{lip_subject}/truth.meta.json",
     log:
-        "results/logs/simulate_lip_talker/{lip_subject}.log",
+        "<results>/logs/simulate_lip_talker/{lip_subject}.log",
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -17,6 +17,8 @@ rule simulate_lip_talker:
         runtime=5,
     params:
         lip=lip_params,
+    message:
+        "simulate_lip_talker {wildcards.lip_subject}: virtual lip tracks"
     script:
         "../../scripts/simulate_lip_talker.py"
 
@@ -26,45 +28,45 @@ rule fit_lip_model:
         unpack(lip_inputs),
     output:
         mesh_png=report(
-            "results/lips/{lip_subject}/mesh.png",
+            "<results>/lips/{lip_subject}/mesh.png",
             caption="../report/lip_mesh.rst",
             category="6. Lip model",
             subcategory="{lip_subject}",
         ),
-        mesh_more=fig_more("results/lips/{lip_subject}/mesh"),
-        mesh_meta="results/lips/{lip_subject}/mesh.meta.json",
-        modes="results/lips/{lip_subject}/modes.tsv",
-        modes_meta="results/lips/{lip_subject}/modes.meta.json",
+        mesh_more=fig_more("<results>/lips/{lip_subject}/mesh"),
+        mesh_meta="<results>/lips/{lip_subject}/mesh.meta.json",
+        modes="<results>/lips/{lip_subject}/modes.tsv",
+        modes_meta="<results>/lips/{lip_subject}/modes.meta.json",
         modes_png=report(
-            "results/lips/{lip_subject}/modes_plot.png",
+            "<results>/lips/{lip_subject}/modes_plot.png",
             caption="../report/lip_modes.rst",
             category="6. Lip model",
             subcategory="{lip_subject}",
         ),
-        modes_more=fig_more("results/lips/{lip_subject}/modes_plot"),
-        modes_fig_meta="results/lips/{lip_subject}/modes_plot.meta.json",
-        residuals="results/lips/{lip_subject}/fit_residuals.tsv",
-        residuals_meta="results/lips/{lip_subject}/fit_residuals.meta.json",
+        modes_more=fig_more("<results>/lips/{lip_subject}/modes_plot"),
+        modes_fig_meta="<results>/lips/{lip_subject}/modes_plot.meta.json",
+        residuals="<results>/lips/{lip_subject}/fit_residuals.tsv",
+        residuals_meta="<results>/lips/{lip_subject}/fit_residuals.meta.json",
         reconstruction=report(
-            "results/lips/{lip_subject}/reconstruction.tsv",
+            "<results>/lips/{lip_subject}/reconstruction.tsv",
             caption="../report/lip_reconstruction.rst",
             category="6. Lip model",
             subcategory="{lip_subject}",
         ),
-        reconstruction_meta="results/lips/{lip_subject}/reconstruction.meta.json",
+        reconstruction_meta="<results>/lips/{lip_subject}/reconstruction.meta.json",
         counts=report(
-            "results/lips/{lip_subject}/model_counts.tsv",
+            "<results>/lips/{lip_subject}/model_counts.tsv",
             caption="../report/lip_model_counts.rst",
             category="6. Lip model",
             subcategory="{lip_subject}",
         ),
-        counts_meta="results/lips/{lip_subject}/model_counts.meta.json",
-        sensitivity="results/lips/{lip_subject}/noise_sensitivity.tsv",
-        sensitivity_meta="results/lips/{lip_subject}/noise_sensitivity.meta.json",
-        heldout="results/lips/{lip_subject}/heldout_points.tsv",
-        heldout_meta="results/lips/{lip_subject}/heldout_points.meta.json",
+        counts_meta="<results>/lips/{lip_subject}/model_counts.meta.json",
+        sensitivity="<results>/lips/{lip_subject}/noise_sensitivity.tsv",
+        sensitivity_meta="<results>/lips/{lip_subject}/noise_sensitivity.meta.json",
+        heldout="<results>/lips/{lip_subject}/heldout_points.tsv",
+        heldout_meta="<results>/lips/{lip_subject}/heldout_points.meta.json",
     log:
-        "results/logs/fit_lip_model/{lip_subject}.log",
+        "<results>/logs/fit_lip_model/{lip_subject}.log",
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -73,5 +75,7 @@ rule fit_lip_model:
         runtime=20,
     params:
         lip=lip_params,
+    message:
+        "fit_lip_model {wildcards.lip_subject}: FEM lip model, modes, LLSE (B&P Table 1)"
     script:
         "../../scripts/fit_lip_model.py"

@@ -3,9 +3,9 @@
 
 rule simulate_subject:
     output:
-        directory("results/virtual/{subject}"),
+        directory("<results>/virtual/{subject}"),
     log:
-        "results/logs/simulate_subject/{subject}.log",
+        "<results>/logs/simulate_subject/{subject}.log",
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -14,5 +14,7 @@ rule simulate_subject:
         runtime=10,
     params:
         sim=simulated_subject_params,
+    message:
+        "simulate_subject {wildcards.subject}: the virtual talker's C3D files"
     script:
         "../../scripts/simulate_subject.py"

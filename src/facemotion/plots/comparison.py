@@ -96,5 +96,5 @@ def plot_paper_comparison(table: pd.DataFrame) -> Figure:
     bx.set_title("L&M Table I: same marker (green),\nsame region (yellow), other (red)",
                  fontsize=9)
     fig.suptitle("The papers' quantitative statements against this study "
-                 "(results/tables/paper_comparison.tsv)", fontsize=11)
+                 "(tables/paper_comparison.tsv)", fontsize=11)
     return fig
