@@ -47,7 +47,9 @@ remember_invocation(INVOCATION_DIR)
 # `--config subjects=SHEET` alone runs the default settings on your sheet, one dataset per
 # subject (the default config's paper datasets only make sense for its own sheet), as the
 # study named after the sheet.
-_OWN_SHEET = "subjects" in config  # a sheet from --config, a config file or a host workflow
+_OWN_SHEET = (
+    "subjects" in config
+)  # a sheet from --config, a config file or a host workflow
 if not workflow.config_settings.configfiles:
     _user = dict(config)
     with open(workflow.source_path("../../config/config.yaml")) as _f:
