@@ -27,5 +27,7 @@ rule compare_with_papers:
         lip_subject=COMPARISON_LIP_SUBJECT,
         tolerance_mm=0.5,
         r_normalisation=config["qr"]["r_normalisation"],
+    message:
+        "compare_with_papers: both papers' quantitative statements beside ours"
     script:
         "../../scripts/compare_with_papers.py"
