@@ -156,3 +156,20 @@ def test_fresh_clone_without_shared_folder_dry_runs(tmp_path):
     assert proc.returncode == 0, out[-3000:]
     assert "skipped lip subject grid_talker" in out
     assert not (tmp_path / "shared").exists()
+
+
+@pytest.mark.workflow
+@pytest.mark.parametrize("name", ["config", "real", "smoke", "talkers"])
+def test_every_shipped_config_dry_runs_with_the_shared_data(tmp_path, name):
+    """Each config file of the repository parses and plans (its paths resolve, e.g. the GRID
+    datasets' face mesh in the shared data)."""
+    shared = Path(os.environ.get("FACEMOTION_SHARED_DATA")
+                  or REPO.parent / "shared" / "data")
+    if not shared.is_dir():
+        pytest.skip(f"no shared data at {shared} (set FACEMOTION_SHARED_DATA)")
+    proc = _snakemake("-s", str(REPO / "Snakefile"), "--directory", str(tmp_path / "wd"), "-n",
+                      "--configfile", str(REPO / "config" / f"{name}.yaml"),
+                      "--config", f"shared_data={shared}", cwd=tmp_path)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out[-3000:]
+    assert "Job stats" in out

@@ -139,7 +139,15 @@ def _dataset_mesh_path(dataset):
     spec = (config.get("datasets") or {}).get(dataset) or {}
     if not spec.get("mesh"):
         return None
-    return _resolve(str(spec["mesh"]).replace("{shared_data}", str(SHARED_DATA)))
+    return resolve_path(
+        str(spec["mesh"]).replace("{shared_data}", str(SHARED_DATA)),
+        f"datasets.{dataset}.mesh",
+        from_command_line=False,
+        inv=INVOCATION_DIR,
+        repo=REPO,
+        what="face mesh",
+        must_exist=False,
+    )
 
 
 for _d in DATASETS:
