@@ -162,3 +162,39 @@ def test_nanmedian_over_markers_equals_numpys():
         with np.errstate(all="ignore"), pytest.warns(RuntimeWarning):
             ref = np.nanmedian(x, axis=1, keepdims=True)
         np.testing.assert_array_equal(_nanmedian_markers(x), ref)
+
+
+def test_vectorised_outlier_screen_equals_the_per_marker_test():
+    """find_outliers sends only markers with a gap, a far sample or a fast step to the
+    piecewise test: the mask equals the piecewise test run on every marker (reference), and
+    the centre distances equal numpy's nanmedian-based ones."""
+    from facemotion.validation import _reachable, centre_distances
+
+    rng = np.random.default_rng(3)
+    F, n = 700, 40
+    pts = 40.0 * rng.standard_normal((1, n, 3)) + np.cumsum(
+        0.3 * rng.standard_normal((F, n, 3)), axis=0)
+    pts[100, 3] += 80.0                      # a spike (fast)
+    pts[300:320, 7] += 60.0                  # a lasting step (fast)
+    pts[50:60, 11] = np.nan                  # a gap
+    pts[400, 20] += [500.0, 0.0, 0.0]        # far from the centre
+    pts[10, :38] = np.nan                    # a frame with 2 markers measured
+    rec = Recording([f"m{j}" for j in range(n)], pts, 100.0, source="planted")
+    lim = Limits()
+    mask, notes = find_outliers(rec, lim)
+    ok = np.isfinite(pts).all(axis=2)
+    with np.errstate(all="ignore"):
+        p = np.where(ok[..., None], pts, np.nan)
+        ref_dist = np.linalg.norm(p - np.nanmedian(p, axis=1, keepdims=True), axis=2)
+    ref_dist[ok.sum(axis=1) < 3] = np.nan
+    dist, enough = centre_distances(rec)
+    np.testing.assert_allclose(dist, ref_dist, rtol=1e-12, atol=0)
+    far = np.nan_to_num(ref_dist, nan=0.0) > lim.max_distance_mm
+    ref = far.copy()
+    for j in range(n):
+        idx = np.flatnonzero(ok[:, j] & ~far[:, j])
+        keep = _reachable(pts[idx, j], idx, rec.rate, lim.max_speed_mm_s)
+        ref[idx[~keep], j] = True
+    np.testing.assert_array_equal(mask, ref)
+    assert mask[100, 3] and mask[300:320, 7].all() and mask[400, 20]
+    assert {note.split("'")[1] for note in notes} == {"m3", "m7", "m20"}

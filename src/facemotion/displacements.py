@@ -191,10 +191,14 @@ def build_displacements(recordings: list[Recording] | Recording,
         raise InputError(f"displacements: {len(head_residuals)} head residual arrays for "
                          f"{len(recordings)} recordings")
     first = recordings[0]
-    blocks, neutrals, rs, rf = [], [], [], []
+    for rec, name in zip(recordings, names, strict=True):
+        check_same_take_layout(rec, first, rec.source or name, first.source or names[0])
+    n = first.n_markers
+    A = np.empty((3 * sum(r.n_frames for r in recordings), n))  # written once, in place
+    neutrals, rs, rf = [], [], []
+    r0 = 0
     for s, (rec, name, hr) in enumerate(zip(recordings, names, head_residuals, strict=True)):
         src = rec.source or name
-        check_same_take_layout(rec, first, src, first.source or names[0])
         if rec.n_frames == 0:
             raise InputError(f"{src}: recording has no frames")
         if hr.shape != (rec.n_frames,):
@@ -207,13 +211,15 @@ def build_displacements(recordings: list[Recording] | Recording,
                              f"{f / rec.rate:.3f} s (frame {f}); fill gaps first")
         n0 = _neutral_pose(rec, neutral)
         neutrals.append(n0)
-        D = rec.points - n0  # (F_s, n, 3)
-        blocks.append(D.transpose(0, 2, 1).reshape(3 * rec.n_frames, rec.n_markers))
-        rs.append(np.full(3 * rec.n_frames, s, dtype=np.int64))
-        rf.append(np.repeat(np.arange(rec.n_frames, dtype=np.int64), 3))
+        # rows (frame f, axis c) = points[f, :, c] - n0[:, c]: frame-major, x y z per frame
+        F = rec.n_frames
+        np.subtract(rec.points.transpose(0, 2, 1), n0.T, out=A[r0:r0 + 3 * F].reshape(F, 3, n))
+        r0 += 3 * F
+        rs.append(np.full(3 * F, s, dtype=np.int64))
+        rf.append(np.repeat(np.arange(F, dtype=np.int64), 3))
     sn = np.stack(neutrals)
     return Displacements(
-        A=np.concatenate(blocks), labels=list(first.labels), sentences=names,
+        A=A, labels=list(first.labels), sentences=names,
         row_sentence=np.concatenate(rs), row_frame=np.concatenate(rf), rate=first.rate,
         fill_mask=np.concatenate([r.filled for r in recordings]),
         head_residual=np.concatenate(head_residuals), neutral=sn.mean(axis=0),

@@ -135,6 +135,7 @@ def align_head(rec: Recording, head_markers: list[str], reference=None
         t[frames] = tb
         fitted = np.einsum("bij,bmj->bmi", Rb, X) + tb[:, None, :]
         residual[frames] = np.sqrt(np.mean(np.sum((fitted - Y) ** 2, axis=2), axis=1))
-    aligned = np.einsum("fij,fmj->fmi", R, rec.points) + t[:, None, :]
+    aligned = np.matmul(rec.points, R.transpose(0, 2, 1))  # x R^T per frame (batched)
+    aligned += t[:, None, :]
     out = Recording(list(rec.labels), aligned, rec.rate, rec.source, rec.filled.copy())
     return out, residual

@@ -151,9 +151,9 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         # so that one odd first frame (as in tracker output) or a brow raise that moves a
         # forehead marker does not bias every other frame.
         first = ref_rec.points[complete[0]]
-        stacked = np.concatenate([
-            align_head(rec, list(head_markers), reference=first)[0]
-            .select(list(head_markers)).points for rec in recs])
+        stacked = np.concatenate([  # only the head markers need moving for this
+            align_head(rec.select(list(head_markers)), list(head_markers),
+                       reference=first)[0].points for rec in recs])
         reference = np.nanmedian(stacked, axis=0)
         aligned = []
         for rec in recs:

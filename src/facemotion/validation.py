@@ -107,26 +107,68 @@ def _nanmedian_markers(x: np.ndarray) -> np.ndarray:
     return np.where(c > 0, m, np.nan)
 
 
-def face_spread(rec: Recording) -> float:
+#: Frames per block of the validation's passes (bounds their temporary memory).
+BLOCK_FRAMES = 2048
+
+
+def _median_markers(p: np.ndarray) -> np.ndarray:
+    """Per-frame median over the markers (axis 1, keepdims) of (frames, markers[, 3]), NaN
+    for missing: numpy's partition-based median on the frames measured in full (the common
+    case), :func:`_nanmedian_markers` on the others. Same values as np.nanmedian."""
+    full = ~np.isnan(p).reshape(len(p), -1).any(axis=1)
+    if full.all():
+        return np.median(p, axis=1, keepdims=True)
+    out = np.empty((len(p), 1) + p.shape[2:])
+    if full.any():
+        out[full] = np.median(p[full], axis=1, keepdims=True)
+    out[~full] = _nanmedian_markers(p[~full])
+    return out
+
+
+def centre_distances(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """(frames, markers) distance (mm) of every sample to its frame's face centre (the
+    per-axis median of the markers measured in that frame; a robust centroid: one corrupt
+    sample of 1e30 mm does not move it), NaN where the sample is missing or the frame has
+    fewer than 3 markers measured; and the (frames,) mask of frames with 3 or more.
+    Computed in blocks of ``BLOCK_FRAMES`` frames."""
+    pts = rec.points
+    F, n, _ = pts.shape
+    dist = np.full((F, n), np.nan)
+    enough = np.zeros(F, dtype=bool)
+    for a in range(0, F, BLOCK_FRAMES):
+        blk = pts[a:a + BLOCK_FRAMES]
+        ok = np.isfinite(blk).all(axis=2)
+        enough[a:a + len(blk)] = ok.sum(axis=1) >= 3
+        e = np.flatnonzero(enough[a:a + len(blk)])
+        if e.size == 0:
+            continue
+        p = blk if e.size == len(blk) else blk[e]
+        if not ok[e].all():
+            p = np.where(ok[e, :, None], p, np.nan)
+        with np.errstate(invalid="ignore", over="ignore"):
+            d = p - _median_markers(p)
+            dist[a + e] = np.sqrt(np.einsum("fnc,fnc->fn", d, d))
+    return dist, enough
+
+
+def face_spread(rec: Recording, distances: tuple[np.ndarray, np.ndarray] | None = None
+                ) -> float:
     """Median over frames of the median distance (mm) of the markers to their centre.
 
     The centre is the per-axis median of the markers (a robust centroid: one corrupt sample
     of 1e30 mm does not move it), over frames with at least 3 markers measured.
+    ``distances``: :func:`centre_distances` of ``rec`` when already computed.
     """
-    pts = rec.points
-    ok = np.isfinite(pts).all(axis=2)
-    frames = np.flatnonzero(ok.sum(axis=1) >= 3)
-    if frames.size == 0:
+    dist, enough = centre_distances(rec) if distances is None else distances
+    if not enough.any():
         return float("nan")
-    p = np.where(ok[frames, :, None], pts[frames], np.nan)
-    with np.errstate(invalid="ignore", over="ignore"):
-        d = np.linalg.norm(p - _nanmedian_markers(p), axis=2)
-    return float(np.median(_nanmedian_markers(d)[:, 0]))
+    return float(np.median(_median_markers(dist[enough])[:, 0]))
 
 
-def check_face_spread(rec: Recording, limits: Limits) -> float:
+def check_face_spread(rec: Recording, limits: Limits,
+                      distances: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """The spread of the face (:func:`face_spread`); InputError if outside the limits."""
-    spread = face_spread(rec)
+    spread = face_spread(rec, distances)
     lo, hi = limits.face_spread_mm
     where = rec.source or "recording"
     if not np.isfinite(spread):
@@ -186,26 +228,40 @@ def _reachable(x: np.ndarray, frames: np.ndarray, rate: float, vmax: float) -> n
     return keep
 
 
-def find_outliers(rec: Recording, limits: Limits) -> tuple[np.ndarray, list[str]]:
-    """(frames, markers) mask of implausible samples, and one note per affected marker."""
-    pts = np.array(rec.points, dtype=float)
+def _fast_markers(pts: np.ndarray, valid: np.ndarray, rate: float, vmax: float) -> np.ndarray:
+    """(markers,) True for the markers that need :func:`_reachable`: a sample not valid
+    (missing or far: the speed across it is checked sample to sample) or a step between
+    consecutive frames faster than ``vmax``. Vectorised over markers, in blocks of frames."""
+    F = len(pts)
+    need = ~valid.all(axis=0)
+    for a in range(0, F - 1, BLOCK_FRAMES):
+        b = min(F, a + BLOCK_FRAMES + 1)
+        d = np.diff(pts[a:b], axis=0)
+        with np.errstate(invalid="ignore", over="ignore"):
+            step = np.sqrt(np.einsum("fnc,fnc->fn", d, d)) * rate
+        need |= (step > vmax).any(axis=0)
+    return need
+
+
+def find_outliers(rec: Recording, limits: Limits,
+                  distances: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[np.ndarray, list[str]]:
+    """(frames, markers) mask of implausible samples, and one note per affected marker.
+
+    ``distances``: :func:`centre_distances` of ``rec`` when already computed."""
+    pts = np.asarray(rec.points, dtype=float)
     F, n, _ = pts.shape
     ok = np.isfinite(pts).all(axis=2)
     out = np.zeros((F, n), dtype=bool)
-    far = np.zeros((F, n), dtype=bool)
-    dist = np.zeros((F, n))
     # distance from the face centre: the per-axis median of the markers measured in the frame
-    enough = ok.sum(axis=1) >= 3
-    if enough.any():
-        p = np.where(ok[..., None], pts, np.nan)[enough]
-        centre = _nanmedian_markers(p)
-        with np.errstate(invalid="ignore", over="ignore"):
-            dist[enough] = np.nan_to_num(np.linalg.norm(p - centre, axis=2), nan=0.0)
-        far = dist > limits.max_distance_mm
+    dist, _ = centre_distances(rec) if distances is None else distances
+    dist = np.nan_to_num(dist, nan=0.0)
+    far = dist > limits.max_distance_mm
     out |= far
     fast = np.zeros((F, n), dtype=bool)
     top_speed = np.zeros(n)
-    for j in range(n):
+    # only markers with a gap, a far sample or a fast step need the piecewise test
+    for j in np.flatnonzero(_fast_markers(pts, ok & ~far, rec.rate, limits.max_speed_mm_s)):
         idx = np.flatnonzero(ok[:, j] & ~far[:, j])
         if idx.size >= 2:
             keep = _reachable(pts[idx, j], idx, rec.rate, limits.max_speed_mm_s)
@@ -242,15 +298,19 @@ def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,
         log.warning("%s: the file declares %s, the subject sheet %s: the file's units are "
                     "used", where, rec.units, sheet_units)
     check_take_length(rec, limits, role)
-    spread = check_face_spread(rec, limits)
-    mask, notes = find_outliers(rec, limits)
+    distances = centre_distances(rec)  # once, for the units and the outliers
+    spread = check_face_spread(rec, limits, distances)
+    mask, notes = find_outliers(rec, limits, distances)
     if notes:
         if limits.outliers == "error":
             raise InputError(f"{where}: {notes[0]} (gaps.outliers is 'error')")
         for note in notes:
             log.warning("%s: %s; treated as gaps", where, note)
-    pts = rec.points.copy()
-    pts[mask] = np.nan
-    clean = Recording(list(rec.labels), pts, rec.rate, rec.source, rec.filled.copy(),
-                      rec.units, rec.units_source)
+    if mask.any():  # the caller's take is left as it was
+        pts = rec.points.copy()
+        pts[mask] = np.nan
+        clean = Recording(list(rec.labels), pts, rec.rate, rec.source, rec.filled.copy(),
+                          rec.units, rec.units_source)
+    else:
+        clean = rec
     return clean, TakeCheck(mask, rec.units, rec.units_source, conflict, spread)
