@@ -3,6 +3,7 @@ disk within a memory bound, and the dense cases of issue 12, with baselines meas
 same run.
 
     python benchmarks/bench_dense.py [--threads 2] [--reps 5] [--quick] [--only NAME ...]
+                                     [--fill-baseline] [--scipy-dense]
 
 Every number comes from this run: BLAS threads fixed at ``--threads`` for our routes AND for
 scipy (threadpoolctl), repetitions interleaved (ours, baseline, ours, ...), medians reported,
@@ -18,9 +19,11 @@ Cases (``--only``):
               GEMM peak for both Gram routes ("rows", "blas") and numpy's ``A.T @ A``.
               Target (issue 13): >= 20x.
 ``load20k``   a 468-landmark, 20,000-frame TRC with three long gaps (written once): read +
-              head alignment + gap filling + A, end to end; and the gap filling alone against
-              the previous method (one thin SVD of the whole take with every marker as donor)
-              on the same recording. Target (issue 13): <= 15 s.
+              head alignment + gap filling + A, end to end (wall, CPU-s, peak RSS), against
+              pandas' C parser reading the same file's numbers in the same run (children
+              interleaved); with ``--fill-baseline`` (always in ``--quick``) also the gap
+              filling alone against the previous method (one thin SVD of the whole take with
+              every marker as donor; minutes at full size). Target (issue 13): <= 15 s.
 ``reader``    TRC parse rate (MB/s) and peak RSS / file size, fast path vs the exact
               line-by-line path (the pre-issue-12 reader's method) on the same file.
 ``mem4g``     a 4 GB A written block by block, then ranked from disk in a child process:
@@ -148,25 +151,43 @@ def _dense_trc(frames, gaps_s, path: Path):
     return path
 
 
-def case_load20k(threads, reps, quick):
+def case_load20k(threads, reps, quick, fill_baseline):
     frames = 4000 if quick else 20000
     data = OUT / "data"
     data.mkdir(parents=True, exist_ok=True)
     trc = _dense_trc(frames, (2.0, 3.0, 5.0), data / f"dense_468x{frames}_3gaps.trc")
     mb = trc.stat().st_size / 2**20
-    walls, rss = [], []
-    for _ in range(max(1, reps // 2)):
+    walls, cpus, rss, pwalls, prss = [], [], [], [], []
+    for _ in range(max(1, reps // 2)):  # interleaved children: ours, pandas, ours, ...
         res, peak = child(["load", str(trc), str(threads)])
         walls.append(res["wall_s"])
+        cpus.append(res["cpu_s"])
         rss.append(peak)
         parts = res
-    wall = float(np.median(walls))
-    row("load20k", "load_dataset_end_to_end_s", wall, "s",
-        f"468 x {frames} frames, 3 long gaps (2, 3, 5 s), TRC {mb:.0f} MB; median of "
-        f"{len(walls)}", "<=15" if not quick else None, wall <= 15 if not quick else None)
+        pres, ppeak = child(["pandas", str(trc)])
+        pwalls.append(pres["wall_s"])
+        prss.append(ppeak)
+    wall, pwall = float(np.median(walls)), float(np.median(pwalls))
+    note = f"468 x {frames} frames, 3 long gaps (2, 3, 5 s), TRC {mb:.0f} MB; median of " \
+        f"{len(walls)}, {threads} BLAS threads"
+    row("load20k", "load_dataset_end_to_end_s", wall, "s", note,
+        "<=15" if not quick else None, wall <= 15 if not quick else None)
+    row("load20k", "load_dataset_cpu_s", float(np.median(cpus)), "CPU-s",
+        "user+system of the loading process, all threads")
     for k in ("read_s", "fill_s"):
         row("load20k", k, parts[k], "s", "inside the end-to-end run")
     row("load20k", "peak_rss_MiB", float(np.median(rss)), "MiB", f"file {mb:.0f} MB")
+    row("load20k", "peak_rss_over_file", float(np.median(rss)) * 2**20 / trc.stat().st_size,
+        "x", "issue 12 measured 17x")
+    row("load20k", "pandas_read_csv_s", pwall, "s",
+        "baseline: pandas' C parser reads the same TRC's numbers (no validation, no A)")
+    row("load20k", "pandas_peak_rss_MiB", float(np.median(prss)), "MiB", "baseline")
+    row("load20k", "end_to_end_over_pandas_read", wall / pwall, "x",
+        "whole loading path / parsing alone by pandas")
+    row("load20k", "read_over_pandas_read", parts["read_s"] / pwall, "x",
+        "our TRC reader / pandas")
+    if not fill_baseline:
+        return
     res, _ = child(["fillcmp", str(trc), str(threads)])
     row("load20k", "fill_gaps_previous_svd_s", res["old_s"], "s",
         "thin SVD of the whole take, every marker a donor (previous method)")
@@ -278,11 +299,18 @@ def worker(argv):
         readers.read_recording = timed(readers.read_recording, "read_s")
         gaps.fill_gaps = timed(gaps.fill_gaps, "fill_s")  # load_dataset imports them at call
         logging.disable(logging.INFO)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         ds = loading.load_dataset([trc], "trc", train=[0], heldout=[])
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         assert np.isfinite(ds.displacements.A).all()
-        return {"wall_s": wall, **spent}
+        return {"wall_s": wall, "cpu_s": cpu, **spent}
+    if kind == "pandas":
+        import pandas as pd
+        trc = argv[1]
+        t0 = time.perf_counter()
+        df = pd.read_csv(trc, sep="\t", skiprows=5, header=None, engine="c")
+        wall = time.perf_counter() - t0
+        return {"wall_s": wall, "frames": len(df)}
     if kind == "fillcmp":
         from dense_face import dense_recording
         from svd_fill_baseline import fill_gaps_svd
@@ -399,6 +427,8 @@ def main(argv=None) -> int:
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--scipy-dense", action="store_true")
+    ap.add_argument("--fill-baseline", action="store_true",
+                    help="load20k: also the previous gap filling (minutes at full size)")
     ap.add_argument("--only", nargs="*", default=["peak", "rank10x", "load20k", "reader",
                                                   "mem4g", "dense"])
     args = ap.parse_args(argv)
@@ -413,7 +443,8 @@ def main(argv=None) -> int:
     if "rank10x" in args.only:
         case_rank10x(args.threads, args.reps, peak)
     if "load20k" in args.only:
-        case_load20k(args.threads, args.reps, args.quick)
+        case_load20k(args.threads, args.reps, args.quick,
+                     args.fill_baseline or args.quick)
     if "reader" in args.only:
         case_reader(args.threads, args.reps, args.quick)
     if "mem4g" in args.only:

@@ -230,3 +230,59 @@ def test_k_max_ranks_only_the_first_pivots():
         np.testing.assert_allclose(rk.r[:12], full.r[:12], rtol=1e-8)
         assert np.isnan(rk.r[12:]).all()
         assert rk.numerical_rank() == 12
+
+
+def test_study_route_picks_randomized_only_for_many_markers_with_k_max():
+    from facemotion.pivoted_qr import RANDOMIZED_MIN_N, study_route
+
+    assert study_route(468, "auto", 100)[0] == "auto"
+    assert study_route(RANDOMIZED_MIN_N, "auto", None)[0] == "auto"
+    route, why = study_route(RANDOMIZED_MIN_N, "auto", 100)
+    assert route == "randomized" and "k_max = 100" in why
+    assert study_route(57, "randomized", 10)[0] == "randomized"
+    with pytest.raises(InputError, match="qr.k_max"):
+        study_route(57, "randomized", None)
+    with pytest.raises(InputError, match="qr.method"):
+        study_route(57, "fast", None)
+
+
+def test_rank_for_study_ranks_every_marker_below_the_randomized_route(caplog):
+    """k_max bounds the curves, not the Gram route's ranking: all r_kk and the epsilon-rank
+    are known and equal scipy's."""
+    from facemotion.pivoted_qr import rank_for_study
+
+    A, labels = correlated(F=300, n=30)
+    with caplog.at_level("INFO", logger="facemotion"):
+        rk = rank_for_study(A, labels, "auto", k_max=5)
+    assert "ranking route: auto" in caplog.text
+    assert rk.n_ranked == 30 and np.isfinite(rk.r).all()
+    R, P = scipy.linalg.qr(A, mode="r", pivoting=True)
+    np.testing.assert_array_equal(rk.order, P)
+    np.testing.assert_allclose(rk.r, np.abs(np.diag(R)), rtol=1e-8)
+    rr = rank_for_study(A, labels, "randomized", k_max=5)
+    assert rr.method == "randomized" and rr.n_ranked == 5 and np.isnan(rr.r[5:]).all()
+    t = epsilon_rank(rr, [1e-9, 1e9])  # past k_max ||R22|| is unknown: NaN, never a guess
+    assert t["epsilon_rank"].isna().all()
+    # the diagonal count over the ranked pivots is a lower bound of the true epsilon-rank
+    full = epsilon_rank(rk, [1e-9, 1e9])
+    assert (t["diagonal_count"] <= full["epsilon_rank"]).all()
+
+
+def test_ranking_summary_with_fewer_rows_than_markers():
+    """GRID-like: 2 sentences of 10 frames (first frame zero) for 80 markers. The numerical
+    rank equals numpy's matrix_rank and the note says how many pivots the QR rule ranked."""
+    from facemotion.pivoted_qr import ranking_summary
+
+    rng = np.random.default_rng(4)
+    blocks = []
+    for _ in range(2):
+        X = np.cumsum(rng.standard_normal((10, 3, 80)), axis=0)
+        blocks.append((X - X[0]).reshape(30, 80))
+    A = np.vstack(blocks)
+    zero = int(np.count_nonzero(~A.any(axis=1)))
+    rk = rank_markers(A, [f"L{j:03d}" for j in range(80)])
+    s = ranking_summary(rk, zero)
+    assert zero == 6 and s["rows"] == 60 and s["pivots_ranked"] == 60
+    assert s["numerical_rank"] == np.linalg.matrix_rank(A) == 54
+    assert "at most 54 markers are independent" in s["note"]
+    assert "the other 20 markers" in s["note"]

@@ -46,11 +46,12 @@ def test_error_curve_equals_per_k_solves():
     rk = rank_markers(A, labels)
     fast = error_curve(rk, B, labels)
     naive = error_curve_naive(A, B, labels, rk)
-    num = [c for c in fast.columns if c != "main_markers"]
+    num = [c for c in fast.columns if c not in ("main_markers", "pivot_marker")]
     np.testing.assert_allclose(fast[num].to_numpy(), naive[num].to_numpy(), rtol=1e-8, atol=1e-10)
     assert fast.k.tolist() == list(range(1, 15))
     assert fast.iloc[-1].mean_abs_error_mm == 0.0
     assert (fast.main_markers == naive.main_markers).all()
+    assert (fast.pivot_marker == fast.main_markers.str.split(",").str[-1]).iloc[:-1].all()
     rms = error_curve_rms(rk, B, labels)
     np.testing.assert_allclose(rms.rms_error_mm, fast.rms_error_mm, rtol=1e-7, atol=1e-9)
     # the error measures relate as they must

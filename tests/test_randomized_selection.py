@@ -57,3 +57,22 @@ def test_randomized_needs_k_max_and_auto_keeps_gram_without_it():
         rank_markers(A, labels, method="randomized")
     assert rank_markers(A, labels, method="auto").method in ("gram", "tsqr")
     assert rank_markers(A, labels, method="auto", k_max=20).method in ("gram", "tsqr")
+
+
+def test_route_accuracy_reports_the_ratio_to_pivoted_qr(case, caplog):
+    """The study's accuracy check of the randomized route equals the ratio computed here from
+    the deterministic ranking of the fixture (the Gram route, scipy's pivots) and is logged."""
+    from facemotion.pivoted_qr import rank_for_study, route_accuracy
+
+    A, labels, det = case
+    rk = rank_for_study(A, labels, "auto", k_max=50)
+    assert rk.method == "randomized"
+    with caplog.at_level(logging.INFO, logger="facemotion"):
+        acc = route_accuracy(A, rk)
+    assert acc["k"] == [10, 50]
+    expected = [selection_residual(A, rk.order, k) / selection_residual(A, det.order, k)
+                for k in (10, 50)]
+    np.testing.assert_allclose(acc["ratio"], expected, rtol=1e-9)
+    assert max(acc["ratio"]) <= 1.05 and "ratio at k = [10, 50]" in caplog.text
+    assert route_accuracy(A[:300, :100], rank_markers(A[:300, :100], labels[:100])) == {
+        "k": [], "ratio": []}

@@ -114,3 +114,16 @@ def test_s1_design_copies_11_into_13_by_default(tmp_path):
     subjects = read_subject_sheet(sheet)
     assert subjects["S1"].copy_markers == [("13", "11")]
     assert subjects["S2a"].copy_markers == []
+
+
+def test_dense_designs_are_written_in_their_format(tmp_path):
+    header = HEADER.rstrip("\n") + "\tsimulate\tn_sentences\n"
+    sheet = write_sheet(tmp_path, ["D\t\ttrc\tH1\tH1\tD468\t12",
+                                   "F\t\topenface_csv\tH1\tH1\tD5023\t3"], header=header)
+    subj = read_subject_sheet(sheet, virtual_dir="v")
+    assert subj["D"].recordings[-1] == "v/D/D_s12.trc" and len(subj["D"].recordings) == 12
+    assert subj["F"].recordings[0] == "v/F/F_s01.csv"
+    sheet = write_sheet(tmp_path, ["S\t\ttrc\t\t\tS2a"], header=HEADER.rstrip("\n")
+                        + "\tsimulate\n")
+    with pytest.raises(InputError, match="written as c3d, not 'trc'"):
+        read_subject_sheet(sheet)

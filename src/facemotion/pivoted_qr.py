@@ -482,6 +482,94 @@ def rank_markers(A, labels: Sequence[str] | None = None, method: str = "auto", *
     return rank_from_r0(R0, rows, labels, k_max)
 
 
+def ranking_summary(ranking: MarkerRanking, zero_rows: int = 0) -> dict:
+    """What the ranking could and did rank, for the rank table and the log: rows of A, the
+    rows that are exactly zero (each sentence's neutral frame when displacements are taken
+    from the first frame), markers, pivots chosen by the QR rule, the numerical rank, the
+    route, and a note when A has fewer independent rows than markers or the ranking stops at
+    k_max."""
+    rows, n, m = ranking.rows, ranking.n, ranking.n_ranked
+    live = rows - int(zero_rows)
+    note = ""
+    if live < n:
+        note = (f"fewer rows than markers: A has {rows} rows"
+                + (f" ({zero_rows} of them zero: the neutral frames)" if zero_rows else "")
+                + f" for {n} markers, so at most {live} markers are independent; the QR rule "
+                f"ranked {m} pivots (numerical rank {ranking.numerical_rank()}), the other "
+                f"{n - m} markers are exact combinations of them (r = 0, original order)")
+    elif m < n:
+        note = (f"ranking stops at k_max = {m} of {n} markers ({ranking.method} route): later "
+                "r values, the epsilon-rank and ||R22|| are not computed")
+    return {"rows": rows, "zero_rows": int(zero_rows), "markers": n, "pivots_ranked": m,
+            "numerical_rank": ranking.numerical_rank(), "route": ranking.method,
+            "note": note}
+
+
+def study_route(n: int, method: str = "auto", k_max: int | None = None) -> tuple[str, str]:
+    """The route the study ranks ``n`` markers by, and why (for the log).
+
+    'auto' takes the randomized route from ``RANDOMIZED_MIN_N`` markers on when ``k_max`` is
+    set (the first k_max pivots from a sketch: two passes of O(rows n k_max) flops instead of
+    the Gram's O(rows n^2)); otherwise every pivot, by the Gram route (TSQR when the Gram
+    matrix is not accurate enough). A method other than 'auto' is taken as given.
+    """
+    if method not in METHODS:
+        raise InputError(f"setting qr.method: unknown ranking method {method!r}; use one of "
+                         f"{', '.join(METHODS)}")
+    if method == "randomized":
+        if k_max is None:
+            raise InputError("setting qr.k_max: the randomized route needs k_max (how many "
+                             "pivots to choose)")
+        return "randomized", f"qr.method 'randomized', first k_max = {k_max} pivots"
+    if method != "auto":
+        return method, f"qr.method {method!r}, every pivot"
+    if k_max is not None and n >= RANDOMIZED_MIN_N:
+        return "randomized", (f"qr.method 'auto': {n} markers >= {RANDOMIZED_MIN_N} with "
+                              f"qr.k_max = {k_max}: the first {k_max} pivots from a sketch")
+    why = (f"{n} markers < {RANDOMIZED_MIN_N}" if n < RANDOMIZED_MIN_N
+           else "qr.k_max not set")
+    return "auto", f"qr.method 'auto' ({why}): every pivot by the Gram route (TSQR fallback)"
+
+
+def rank_for_study(A, labels: Sequence[str] | None = None, method: str = "auto", *,
+                   k_max: int | None = None, threads: int | None = None,
+                   seed: int = 0) -> MarkerRanking:
+    """The ranking every stage of the study uses (:func:`study_route` picks the route, and it
+    is logged): all n pivots (so every r_kk and the epsilon-rank are known) unless the route
+    is the randomized one, which ranks the first ``k_max``. ``k_max`` itself bounds the error
+    curves (:func:`facemotion.prediction.error_curve`), not this ranking."""
+    A, labels = _unpack(A, labels)
+    n = A.shape[1]
+    route, why = study_route(n, method, k_max)
+    ranking = rank_markers(A, labels, method=route, k_max=k_max if route == "randomized"
+                           else None, threads=threads, seed=seed)
+    log.info("ranking route: %s (%s); ranked %d of %d markers by %s", route, why,
+             ranking.n_ranked, n, ranking.method)
+    return ranking
+
+
+def route_accuracy(A, ranking: MarkerRanking, *, threads: int | None = None) -> dict:
+    """How close the randomized route's selection is to deterministic pivoted QR (issue 12:
+    within 1.05x): ||A - A_S X||_F of the ranking's first k columns over that of the Gram
+    route's (pivoted QR's pivots, exactly) at the same k, for k in 10, 50, 100 and k_max (those
+    not beyond k_max). Costs the Gram pass the randomized route avoids; logged. Returns
+    {"k": [...], "ratio": [...]} (empty lists for a ranking that is not randomized)."""
+    from facemotion.randomized_selection import selection_residual
+
+    if ranking.method != "randomized":
+        return {"k": [], "ratio": []}
+    A, labels = _unpack(A, ranking.labels)
+    det = rank_markers(A, labels, method="gram", threads=threads)
+    m = ranking.n_ranked
+    ks = sorted({k for k in (10, 50, 100, m) if k <= m})
+    ratios = [selection_residual(A, ranking.order, k) / selection_residual(A, det.order, k)
+              for k in ks]
+    log.info("randomized route vs deterministic pivoted QR (Gram route), residual "
+             "||A - A_S X||_F ratio at k = %s: %s (issue 12 asks <= 1.05)", ks,
+             ", ".join(f"{r:.4f}" for r in ratios))
+    return {"k": ks, "ratio": ratios}
+
+
 def spectral_norm(M: np.ndarray) -> float:
     """||M||_2, the largest singular value (0 for an empty matrix)."""
     if M.size == 0:
@@ -528,7 +616,10 @@ def epsilon_rank(ranking: MarkerRanking, tolerances_mm,
     Columns: ``epsilon_rank``, the paper's rule (smallest k with ||R22||_2 <= epsilon, Sec. III);
     ``r22_norm_at_rank_mm``, ||R22||_2 at that k; ``diagonal_count``, the number of pivots with
     normalised |r_kk| > epsilon (an older, looser reading, never larger); ``redundant_markers``,
-    the markers after the epsilon-rank in pivot order (comma-separated labels).
+    the markers after the epsilon-rank in pivot order (comma-separated labels). A ranking
+    that stops at k_max (the randomized route) leaves epsilon_rank and ||R22||_2 unknown (NaN,
+    no redundant markers listed); its diagonal count over the ranked pivots is then a lower
+    bound of the epsilon-rank.
     """
     try:
         tols = np.atleast_1d(np.asarray(tolerances_mm, dtype=float)).ravel()
@@ -537,12 +628,19 @@ def epsilon_rank(ranking: MarkerRanking, tolerances_mm,
     bad = tols[~(np.isfinite(tols) & (tols > 0))]
     if bad.size:
         raise InputError(f"tolerances_mm: tolerances must be positive finite mm, got {bad[0]!r}")
-    if np.isnan(ranking.r).any():
-        raise InputError(f"epsilon-rank: the ranking stops at k_max = {ranking.n_ranked} "
-                         "pivots, so ||R22||_2 is not known; rank without k_max")
     r = ranking.normalised_r(normalisation)
     out = []
+    stops = bool(np.isnan(ranking.r).any())  # the randomized route: first k_max pivots only
     for tol in tols:
+        if stops:
+            # ||R22||_2 is not known past k_max; |r_kk| <= ||R[j:, j:]||_2 for j <= k, so the
+            # pivots above epsilon still bound the epsilon-rank from below
+            m = ranking.n_ranked
+            out.append({"tolerance_mm": float(tol), "r_normalisation": normalisation,
+                        "epsilon_rank": np.nan, "r22_norm_at_rank_mm": np.nan,
+                        "diagonal_count": int(np.count_nonzero(r[:m] > tol)),
+                        "redundant_markers": ""})
+            continue
         k, norm = paper_epsilon_rank(ranking, float(tol), normalisation)
         out.append(
             {

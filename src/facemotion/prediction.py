@@ -54,6 +54,7 @@ CURVE_COLUMNS = [
     "max_abs_error_mm",
     "rel_error_per_marker",
     "rel_error_pooled",
+    "pivot_marker",
     "main_markers",
 ]
 
@@ -126,6 +127,7 @@ def _stats(E3: np.ndarray, mag: np.ndarray, k: int, main: str) -> dict:
         "max_abs_error_mm": float(dist.max()),
         "rel_error_per_marker": float(per_marker.mean()),
         "rel_error_pooled": float(dist.sum() / mag_sum) if mag_sum > 0 else float("nan"),
+        "pivot_marker": main.rsplit(",", 1)[-1],  # the main marker added at this k
         "main_markers": main,
     }
 
@@ -139,6 +141,7 @@ def _zero_row(n: int, lab: list[str]) -> dict:
         "max_abs_error_mm": 0.0,
         "rel_error_per_marker": 0.0,
         "rel_error_pooled": 0.0,
+        "pivot_marker": "",
         "main_markers": ",".join(lab),
     }
 

@@ -63,7 +63,7 @@ COLUMNS = [
     "n_frames",
     "sentences",
 ]
-_BLOCK_CHUNK = 1024  # blocks per batched Gram (memory: chunk x n x n doubles)
+_CHUNK_BYTES = 64 * 2**20  # per n x n temporary of the batched Gram (there are about five)
 
 
 def _positive(name, value):
@@ -169,18 +169,19 @@ def find_redundant_markers(
     flagged = np.zeros((nblocks, n, n), dtype=bool)
     valid = counts >= max(2, b // 2)
     off = ~np.eye(n, dtype=bool)
-    for start in range(0, nblocks, _BLOCK_CHUNK):
-        Vc = Vb[start : start + _BLOCK_CHUNK]
+    chunk = max(1, min(1024, _CHUNK_BYTES // (8 * n * n)))  # blocks per batched Gram
+    for start in range(0, nblocks, chunk):
+        Vc = Vb[start : start + chunk]
         G = np.matmul(Vc.transpose(0, 2, 1), Vc)  # (blocks, n, n): <v_i, v_j> per block
         gd = np.diagonal(G, axis1=1, axis2=2)  # <v_j, v_j>
         with np.errstate(divide="ignore", invalid="ignore"):
             c = G / gd[:, None, :]  # c[i, j]: v_i ~ c v_j
             ss = gd[:, :, None] - G * c  # residual sum of squares of v_i - c v_j
-        ns = 3 * counts[start : start + _BLOCK_CHUNK, None, None]
+        ns = 3 * counts[start : start + chunk, None, None]
         res = np.sqrt(np.maximum(ss, 0) / ns / 2.0)  # residual_rms_mm
         ok = (res < thr) & (c > c_lo) & (c < c_hi) & (gd[:, None, :] > 0) & off
-        ok &= valid[start : start + _BLOCK_CHUNK, None, None]
-        flagged[start : start + _BLOCK_CHUNK] = ok | ok.transpose(0, 2, 1)
+        ok &= valid[start : start + chunk, None, None]
+        flagged[start : start + chunk] = ok | ok.transpose(0, 2, 1)
 
     # ---- runs of flagged blocks per unordered pair -> refined intervals ----------------
     intervals = []  # (i, j, first_frame, end_frame_exclusive, sentence)
@@ -287,3 +288,12 @@ def _refine(vi, vj, t0, t1, thr):
     while t1 < r.size and below[t1]:
         t1 += 1
     return t0, t1
+
+
+def longest(table: pd.DataFrame, n: int) -> pd.DataFrame:
+    """The ``n`` longest intervals of a :func:`find_redundant_markers` table (ties: the
+    smaller residual first, then the table's order): the readable top of a long table."""
+    if table.empty:
+        return table.copy()
+    key = table.assign(_d=-(table["end_s"] - table["start_s"]), _i=range(len(table)))
+    return table.loc[key.sort_values(["_d", "residual_rms_mm", "_i"]).index[:n]]

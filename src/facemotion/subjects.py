@@ -170,15 +170,18 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
         else:
             sentence_duration = None
         if design is not None:
-            if fmt != "c3d":
-                raise InputError(f"{where}: simulated subject {sid!r} is written as c3d, "
-                                 f"not {fmt!r}")
+            from facemotion.dense_talker import DENSE_DESIGNS, DENSE_FORMATS
+
+            written = DENSE_FORMATS if design in DENSE_DESIGNS else {"c3d": "c3d"}
+            if fmt not in written:
+                raise InputError(f"{where}: simulated subject {sid!r} (design {design!r}) is "
+                                 f"written as {' or '.join(written)}, not {fmt!r}")
             n = n_sentences or DESIGN_SENTENCES.get(design)
             if n is None:
                 raise InputError(f"{where}: design {design!r} needs n_sentences")
             if n < 1:
                 raise InputError(f"{where}: n_sentences must be at least 1")
-            recordings = [str(Path(virtual_dir) / sid / f"{sid}_s{j + 1:02d}.c3d")
+            recordings = [str(Path(virtual_dir) / sid / f"{sid}_s{j + 1:02d}.{written[fmt]}")
                           for j in range(n)]
             n_sentences = n
         else:

@@ -267,11 +267,15 @@ def _lobe(p: np.ndarray, c, sx: float, sy: float | None = None) -> np.ndarray:
     return np.exp(-((p[:, 0] - c[0]) ** 2) / (2 * sx**2) - ((p[:, 1] - c[1]) ** 2) / (2 * sy**2))
 
 
-def influence_fields(neutral: np.ndarray, anatomy: np.ndarray | None = None) -> np.ndarray:
+def influence_fields(neutral: np.ndarray, anatomy: np.ndarray | None = None,
+                     jaw_side: np.ndarray | None = None) -> np.ndarray:
     """D (K, n, 3): the displacement of every marker per unit of each source (mm).
 
     neutral: (n, 3) marker positions where the fields are evaluated; anatomy: (57, 3) the
     talker's landmark markers that centre the sources (default: ``neutral`` itself).
+    jaw_side: (n,) the share of the jaw's motion a point follows where it is known (1 on the
+    lower lip, 0 on the upper, NaN elsewhere: the smooth step about the mouth line), for a
+    mesh whose lips nearly touch (the dense talker, :mod:`facemotion.dense_talker`).
     """
     p = np.asarray(neutral, float)
     a = p if anatomy is None else np.asarray(anatomy, float)
@@ -284,6 +288,9 @@ def influence_fields(neutral: np.ndarray, anatomy: np.ndarray | None = None) -> 
     # joints (axis along x through y = 10, z = -40; JAW_RAD_PER_UNIT per unit), the corners half;
     # the skin of the lower cheeks is pulled with it; the upper cheeks rise slightly
     below = 1.0 / (1.0 + np.exp((y - mouth_y) / 3.0))
+    if jaw_side is not None:
+        side = np.asarray(jaw_side, float)
+        below = np.where(np.isfinite(side), side, below)
     stretch = 1.0 / (1.0 + np.exp((y - mouth_y - 14.0) / 6.0)) - below
     theta = JAW_RAD_PER_UNIT
     D[_K["jaw_open"], :, 1] = -theta * (z + 40.0) * (below + 0.25 * stretch)

@@ -109,3 +109,29 @@ def _is_float(text) -> bool:
         return False
     return True
 
+
+
+def write_openface_csv(path, rec: Recording) -> None:
+    """Write ``rec`` in the layout :func:`read_openface_csv` reads: ``frame`` (1-based),
+    ``face_id`` 0, ``timestamp`` (s), ``confidence`` 1, ``success`` 1, then ``X_i``, ``Y_i``,
+    ``Z_i`` (mm) with landmark i = ``rec.labels[i]`` (read back as ``L{i}``). OpenFace reports
+    every landmark of a frame or none, so a take with a missing sample is refused (one line
+    naming the marker and frame) instead of being written in a way OpenFace never writes."""
+    from facemotion.readers import _atomic_path, _fmt
+
+    missing = ~np.isfinite(rec.points).all(axis=2)
+    if missing.any():
+        f, j = (int(x) for x in np.argwhere(missing)[0])
+        raise InputError(f"{rec.source or 'recording'}: marker {rec.labels[j]!r} is missing at "
+                         f"frame {f + 1}; an OpenFace CSV has every landmark of a tracked "
+                         "frame (write TRC or C3D instead)")
+    n = rec.n_markers
+    header = ["frame", "face_id", "timestamp", "confidence", "success"]
+    header += [f"{a}_{k}" for a in "XYZ" for k in range(n)]
+    flat = rec.points.transpose(0, 2, 1).reshape(rec.n_frames, 3 * n)  # X..., Y..., Z...
+    out = [", ".join(header)]
+    for f in range(rec.n_frames):
+        out.append(f"{f + 1}, 0, {f / rec.rate:.6f}, 1, 1, "
+                   + ", ".join(_fmt(x) for x in flat[f]))
+    with _atomic_path(path) as tmp:
+        tmp.write_text("\n".join(out) + "\n", encoding="utf-8")
