@@ -6,7 +6,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= 2
 
-.PHONY: study test real smoke talkers report real-report smoke-report talkers-report bench lint venv clean constraints docs
+.PHONY: study test real dense smoke talkers report real-report dense-report smoke-report talkers-report bench lint venv clean constraints docs
 
 $(BIN)/python:
 	@command -v $(PY) >/dev/null 2>&1 || { echo "need $(PY) (Python 3.11)"; exit 1; }
@@ -27,6 +27,10 @@ study: venv
 real: venv
 	$(BIN)/snakemake --cores $(CORES) --configfile config/real.yaml
 
+# Dense faces: the dense virtual talker (468 mesh vertices) and GRID with all its landmarks
+dense: venv
+	$(BIN)/snakemake --cores $(CORES) --configfile config/dense.yaml
+
 smoke: venv
 	$(BIN)/snakemake --cores $(CORES) --configfile config/smoke.yaml
 
@@ -38,7 +42,7 @@ talkers: venv
 report: venv
 	$(BIN)/snakemake --cores $(CORES) --report results/paper/report.html
 
-real-report smoke-report talkers-report: %-report: venv
+real-report dense-report smoke-report talkers-report: %-report: venv
 	$(BIN)/snakemake --cores $(CORES) --configfile config/$*.yaml --report results/$*/report.html
 
 test: venv

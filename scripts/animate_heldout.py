@@ -5,7 +5,7 @@ import numpy as np
 from facemotion.animation import FaceAnimation, animation_page, frame_indices, write_animation
 from facemotion.displacements import load_displacements
 from facemotion.loading import split_roles
-from facemotion.pivoted_qr import rank_markers
+from facemotion.pivoted_qr import rank_for_study
 from facemotion.prediction import predict
 from facemotion.provenance import atomic_write_bytes, save_figure, sidecar_for_existing
 from facemotion.snakemake_adapter import figure_paths, run_step
@@ -15,7 +15,8 @@ def main(sm, log, prov):
     cfg = sm.params.animation
     d = load_displacements(sm.input.npz)
     train, held = split_roles(d, sm.input.sentences)
-    ranking = rank_markers(train.A, train.labels, method=sm.params.method)
+    ranking = rank_for_study(train.A, train.labels, method=sm.params.method,
+                             k_max=sm.params.k_max)
     k = cfg["k"]  # k and sentences are checked against the data at parse time
     main_markers = ranking.labels_in_order[:k]
     n = cfg["sentences"]

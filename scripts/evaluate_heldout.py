@@ -6,7 +6,7 @@ import pandas as pd
 from facemotion.displacements import load_displacements
 from facemotion.errors import InputError
 from facemotion.loading import split_roles
-from facemotion.pivoted_qr import rank_markers
+from facemotion.pivoted_qr import rank_for_study
 from facemotion.plots.errors import plot_error_curves, plot_trajectory
 from facemotion.prediction import error_curve, predict
 from facemotion.provenance import save_figure, write_table
@@ -18,8 +18,10 @@ def main(sm, log, prov):
     train, held = split_roles(load_displacements(sm.input.npz), sm.input.sentences)
     if held is None:
         raise InputError(f"dataset {sm.wildcards.dataset}: no held-out sentences to evaluate")
-    ranking = rank_markers(train.A, train.labels, method=p.method)
-    curve = error_curve(ranking, held.A, held.labels)
+    ranking = rank_for_study(train.A, train.labels, method=p.method, k_max=p.k_max)
+    curve = error_curve(ranking, held.A, held.labels, k_max=p.k_max)
+    log.info("error curve for k = 1..%d (qr.k_max %s, numerical rank %d)", len(curve) - 1,
+             p.k_max, ranking.numerical_rank())
     write_table(curve, sm.output.curve, "error_curve", prov)
     fig = plot_error_curves({p.label: curve}, n_markers={p.label: len(held.labels)})
     save_figure(fig, figure_paths(sm.output, "png"), "error_curve", prov)

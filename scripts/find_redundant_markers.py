@@ -2,7 +2,7 @@
 
 from facemotion.displacements import load_displacements
 from facemotion.provenance import write_table
-from facemotion.redundancy import find_redundant_markers
+from facemotion.redundancy import find_redundant_markers, longest
 from facemotion.snakemake_adapter import run_step
 
 
@@ -13,8 +13,10 @@ def main(sm, log, prov):
                                    min_duration_s=sm.params.min_copy_s,
                                    sentence_names=d.sentences,
                                    fill_mask=d.fill_mask)
-    log.info("%d suspect interval(s)", len(table))
+    log.info("%d suspect interval(s); the %d longest in redundancy_top.tsv", len(table),
+             min(len(table), sm.params.top_n))
     write_table(table, sm.output.table, "redundancy", prov)
+    write_table(longest(table, sm.params.top_n), sm.output.top, "redundancy", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

@@ -3,7 +3,7 @@
 from facemotion.displacements import load_displacements
 from facemotion.face_mesh import read_face_mesh
 from facemotion.loading import split_roles
-from facemotion.pivoted_qr import rank_markers
+from facemotion.pivoted_qr import rank_for_study
 from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
 from facemotion.prediction import fit_coefficients
 from facemotion.provenance import save_figure, write_table
@@ -14,7 +14,8 @@ def main(sm, log, prov):
     d = load_displacements(sm.input.npz)
     train, _ = split_roles(d, sm.input.sentences)
     k = int(sm.wildcards.k)
-    ranking = rank_markers(train.A, train.labels, method=sm.params.method)
+    ranking = rank_for_study(train.A, train.labels, method=sm.params.method,
+                             k_max=sm.params.k_max)
     X = fit_coefficients(ranking, k)
     table = X.copy()
     table.insert(0, "main_marker", X.index.astype(str))

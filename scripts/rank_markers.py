@@ -1,24 +1,38 @@
 """Rank markers by QR with column pivoting; epsilon-rank (paper Fig. 2)."""
 
+import numpy as np
+
 from facemotion.displacements import load_displacements
 from facemotion.loading import split_roles
-from facemotion.pivoted_qr import epsilon_rank, rank_markers
+from facemotion.pivoted_qr import epsilon_rank, rank_for_study, ranking_summary, route_accuracy
 from facemotion.plots.rank import plot_r_values
 from facemotion.provenance import save_figure, write_table
 from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
+    p = sm.params
     train, _ = split_roles(load_displacements(sm.input.npz), sm.input.sentences)
-    ranking = rank_markers(train.A, train.labels, method=sm.params.method)
-    norm = sm.params.r_normalisation
+    ranking = rank_for_study(train.A, train.labels, method=p.method, k_max=p.k_max)
+    norm = p.r_normalisation
     table = ranking.to_frame(norm)  # |r_kk| in the three readings of Fig. 2, and the chosen
     write_table(table, sm.output.r_values, "r_values", prov)
-    rank = epsilon_rank(ranking, list(sm.params.tolerances_mm), normalisation=norm)
+    write_table(table.head(p.top_n), sm.output.r_values_top, "r_values", prov)
+    rank = epsilon_rank(ranking, list(p.tolerances_mm), normalisation=norm)
+    summary = ranking_summary(ranking, int(np.count_nonzero(~train.A.any(axis=1))))
+    if summary["note"]:
+        log.warning("%s", summary["note"])
+    if p.route_check and ranking.method == "randomized":  # vs pivoted QR at the same k
+        acc = route_accuracy(train.A, ranking)
+        summary["residual_ratio_vs_qr"] = ";".join(
+            f"k={k}:{r:.4f}" for k, r in zip(acc["k"], acc["ratio"], strict=True))
+    for key, value in summary.items():  # the same facts in the table
+        rank.insert(len(rank.columns) - 1, key, value)
     write_table(rank, sm.output.rank, "rank", prov)
     log.info("R normalisation %r; epsilon-rank (smallest k with ||R22||_2 <= epsilon) and the "
-             "diagonal count: %s", norm, rank.drop(columns="redundant_markers").to_dict("records"))
-    fig = plot_r_values({sm.params.label: table}, tolerances=tuple(sm.params.tolerances_mm))
+             "diagonal count: %s", norm,
+             rank[["tolerance_mm", "epsilon_rank", "diagonal_count"]].to_dict("records"))
+    fig = plot_r_values({p.label: table}, tolerances=tuple(p.tolerances_mm))
     save_figure(fig, figure_paths(sm.output, "png"), "r_values", prov)
 
 

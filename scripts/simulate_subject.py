@@ -1,7 +1,9 @@
-"""Write a virtual subject as C3D files (one per sentence) plus its ground truth."""
+"""Write a virtual subject as C3D files (one per sentence) plus its ground truth; the dense
+talker (designs D468, D5023) in the subject's format, plus its mesh."""
 
 from pathlib import Path
 
+from facemotion.dense_talker import DENSE_DESIGNS, simulate_dense, write_dense_subject
 from facemotion.provenance import write_artifact
 from facemotion.readers import write_c3d
 from facemotion.snakemake_adapter import run_step
@@ -16,6 +18,12 @@ def main(sm, log, prov):
               "talker_seed": p["talker_seed"]}
     if p.get("sentence_duration"):
         kwargs["sentence_duration"] = tuple(p["sentence_duration"])
+    if p["design"] in DENSE_DESIGNS:  # the dense talker: TRC, C3D or OpenFace CSV, mesh.obj
+        subject = simulate_dense(p["design"], shared_data=p["shared_data"], **kwargs)
+        for path in write_dense_subject(subject, out, sm.wildcards.subject, p["format"]):
+            log.info("wrote %s", path.name)
+        write_artifact(out / "truth.npz", truth_npz_bytes(subject), "virtual_truth", prov)
+        return
     subject = simulate_subject(p["design"], **kwargs)
     for i, (rec, name) in enumerate(zip(subject.recordings, subject.names, strict=True)):
         write_c3d(out / f"{sm.wildcards.subject}_s{i + 1:02d}.c3d", rec)

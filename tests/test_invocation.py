@@ -159,7 +159,7 @@ def test_fresh_clone_without_shared_folder_dry_runs(tmp_path):
 
 
 @pytest.mark.workflow
-@pytest.mark.parametrize("name", ["config", "real", "smoke", "talkers"])
+@pytest.mark.parametrize("name", ["config", "real", "dense", "smoke", "talkers"])
 def test_every_shipped_config_dry_runs_with_the_shared_data(tmp_path, name):
     """Each config file of the repository parses and plans (its paths resolve, e.g. the GRID
     datasets' face mesh in the shared data)."""

@@ -98,3 +98,23 @@ def test_schema_errors_are_one_line_naming_the_setting(config):
     cfg["animation"]["formt"] = "gif"
     with pytest.raises(InputError, match=r"^setting animation: Additional properties .*formt"):
         validate_config(cfg, SCHEMA)
+
+
+@pytest.mark.parametrize("qr,match", [
+    ({"k_max": 20}, r"setting qr\.k_max: 20 must be fewer than the markers of dataset S1"),
+    ({"k_max": 2}, r"setting fit\.k: k = \d+ exceeds qr\.k_max = 2"),
+    ({"method": "randomized"}, r"setting qr\.k_max: the randomized route"),
+])
+def test_k_max_refused_never_clamped(config, qr, match):
+    cfg = copy.deepcopy(config)
+    cfg["qr"].update(qr)
+    with pytest.raises(InputError, match=match):
+        check_settings(cfg, COUNTS)
+
+
+def test_k_max_within_the_data_passes(config):
+    cfg = copy.deepcopy(config)
+    cfg["qr"].update({"k_max": 19, "method": "randomized"})
+    check_settings(cfg, COUNTS)
+    with pytest.raises(InputError, match=r"setting qr\.k_max"):
+        validate_config({**cfg, "qr": {**cfg["qr"], "k_max": 0}}, SCHEMA)

@@ -47,9 +47,23 @@ def check_settings(config: dict, counts: dict[str, DataCounts]) -> None:
         if k < fit["orthogonal_maps"]:
             _fail("fit.orthogonal_maps", f"{fit['orthogonal_maps']} maps of the first pivots' "
                   f"directions but fit.k has k = {k}; the maps show at most k pivots")
+    k_max = qr.get("k_max")
+    if k_max is not None:
+        used = [("fit.k", k) for k in fit["k"]] + [("eval.trajectory_k", ev["trajectory_k"])]
+        if anim["enabled"]:
+            used.append(("animation.k", anim["k"]))
+        for setting, k in used:
+            if k > k_max:
+                _fail(setting, f"k = {k} exceeds qr.k_max = {k_max} (the error curves and, "
+                      "on the randomized route, the ranking stop there)")
+    elif qr.get("method") == "randomized":
+        _fail("qr.k_max", "the randomized route (qr.method: randomized) needs k_max, the "
+              "number of pivots to choose")
     for d, c in counts.items():
         n = c.markers
         of = f"dataset {d}, which analyses {n} markers"
+        if k_max is not None and not k_max < n:
+            _fail("qr.k_max", f"{k_max} must be fewer than the markers of {of}")
         for k in fit["k"]:
             if not k < n:
                 _fail("fit.k", f"k = {k} main markers must be fewer than the markers of {of}")

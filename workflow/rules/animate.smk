@@ -34,6 +34,7 @@ rule animate_heldout:
     params:
         label=lambda wc: DATASETS[wc.dataset].label,
         method=config["qr"]["method"],
+        k_max=config["qr"]["k_max"],
         animation=config["animation"],
     message:
         "animate_heldout {wildcards.dataset}: face driven by the k main markers (L&M Fig. 8)"

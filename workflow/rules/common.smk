@@ -269,6 +269,8 @@ def simulated_subject_params(wildcards):
         "talker_seed": subj.talker_seed,
         "n_sentences": subj.n_sentences,
         "sentence_duration": subj.sentence_duration,
+        "format": subj.format,
+        "shared_data": str(SHARED_DATA),
     }
 
 
@@ -358,11 +360,14 @@ EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
 # ---- every setting against the data's marker and sentence counts (parse time) ----
 from facemotion.readers import read_labels
 from facemotion.sweeps import expand_grid
+from facemotion.dense_talker import DENSE_DESIGNS, dense_layout
 from facemotion.synth import marker_layout
 
 
 def _file_labels(subj):
     """A subject's marker labels, known at parse time (reads one file's header)."""
+    if subj.simulate in DENSE_DESIGNS:
+        return dense_layout(subj.simulate)
     if subj.simulate:
         return marker_layout(design=subj.simulate)[0]
     return read_labels(

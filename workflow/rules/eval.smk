@@ -37,6 +37,7 @@ rule evaluate_heldout:
     params:
         label=lambda wc: DATASETS[wc.dataset].label,
         method=config["qr"]["method"],
+        k_max=config["qr"]["k_max"],
         marker=config["eval"]["trajectory_marker"],
         sentence=config["eval"]["trajectory_sentence"],
         k=config["eval"]["trajectory_k"],

@@ -38,6 +38,7 @@ rule fit_regions:
     params:
         label=lambda wc: DATASETS[wc.dataset].label,
         method=config["qr"]["method"],
+        k_max=config["qr"]["k_max"],
         grid_n=config["fit"]["grid_n"],
         orthogonal_maps=config["fit"]["orthogonal_maps"],
         mesh_labels=dataset_mesh_labels,

@@ -8,6 +8,8 @@ rule rank_markers:
     output:
         r_values="<results>/{dataset}/qr/r_values.tsv",
         r_values_meta="<results>/{dataset}/qr/r_values.meta.json",
+        r_values_top="<results>/{dataset}/qr/r_values_top.tsv",
+        r_values_top_meta="<results>/{dataset}/qr/r_values_top.meta.json",
         rank="<results>/{dataset}/qr/rank.tsv",
         rank_meta="<results>/{dataset}/qr/rank.meta.json",
         png=report(
@@ -29,6 +31,9 @@ rule rank_markers:
     params:
         label=lambda wc: DATASETS[wc.dataset].label,
         method=config["qr"]["method"],
+        k_max=config["qr"]["k_max"],
+        top_n=config["qr"]["top_n"],
+        route_check=config["qr"]["route_check"],
         tolerances_mm=config["qr"]["tolerances_mm"],
         r_normalisation=config["qr"]["r_normalisation"],
     message:
@@ -43,6 +48,8 @@ rule find_redundant_markers:
     output:
         table="<results>/{dataset}/qr/redundancy.tsv",
         meta="<results>/{dataset}/qr/redundancy.meta.json",
+        top="<results>/{dataset}/qr/redundancy_top.tsv",
+        top_meta="<results>/{dataset}/qr/redundancy_top.meta.json",
     log:
         "<results>/logs/find_redundant_markers/{dataset}.log",
     conda:
@@ -54,6 +61,7 @@ rule find_redundant_markers:
     params:
         noise_mm=config["qr"]["noise_mm"],
         min_copy_s=config["qr"]["min_copy_s"],
+        top_n=config["qr"]["top_n"],
     message:
         "find_redundant_markers {wildcards.dataset}: markers that copy others"
     script:
