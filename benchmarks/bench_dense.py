@@ -33,6 +33,9 @@ Cases (``--only``):
               wall time, peak RSS, the ratio to scipy's pivoted QR where it fits
               (``--scipy-dense`` also for 5,023 points: slow), and a fit of time against frames
               and points (log-log slope).
+``talker``    the dense virtual talker D5023 (40 sentences; ``--quick``: 8) loaded by the study's
+              path: the randomized route's residual ||A - A_S X||_F over deterministic pivoted
+              QR's at k = 10, 50, 100 (target: <= 1.05), and both routes' times.
 """
 
 from __future__ import annotations
@@ -276,6 +279,23 @@ def case_dense(threads, reps, quick, scipy_dense):
             ", ".join(f"{n}: {t:.1f} s" for n, t in pts))
 
 
+def case_talker(threads, quick):
+    """The randomized route on the dense virtual talker (issue 12: within 1.05x of pivoted
+    QR's residual at k = 10, 50 and 100), in a child: D5023, its sentences loaded by the
+    study's path, training sentences ranked by both routes."""
+    n_sent = 8 if quick else 40
+    res, peak = child(["talker", str(threads), str(n_sent)])
+    note = (f"D5023, {n_sent} sentences, A {res['rows']}x{res['n']} (training), "
+            f"{threads} threads")
+    row("talker", "simulate_and_load_s", res["load_s"], "s", note)
+    row("talker", "gram_route_all_pivots_s", res["gram_s"], "s", "deterministic pivoted QR")
+    row("talker", "randomized_route_k100_s", res["rand_s"], "s", "first 100 pivots")
+    for k, r in zip(res["k"], res["ratio"], strict=True):
+        row("talker", f"residual_ratio_randomized_over_qr_k{k}", r, "x",
+            "||A - A_S X||_F, same k", "<=1.05", r <= 1.05)
+    row("talker", "peak_rss_MiB", peak, "MiB")
+
+
 # ------------------------------------------------------------------------------------ workers
 
 def worker(argv):
@@ -373,6 +393,35 @@ def worker(argv):
             gf = gram_flops(*train.shape) / tg / 1e9
             out.update(gram_gflops=gf, gram_frac=gf / gemm_rate(threads))
         return out
+    if kind == "talker":
+        import logging
+
+        from facemotion.dense_talker import simulate_dense, write_dense_subject
+        from facemotion.loading import load_dataset
+        from facemotion.pivoted_qr import rank_markers, route_accuracy
+        from facemotion.synth import HEAD_LABELS
+        threads, n_sent = int(argv[1]), int(argv[2])
+        logging.disable(logging.INFO)
+        t0 = time.perf_counter()
+        subj = simulate_dense("D5023", seed=1, n_sentences=n_sent,
+                              shared_data=os.environ.get("FACEMOTION_SHARED_DATA"))
+        n_train = n_sent - max(1, n_sent // 4)
+        with tempfile.TemporaryDirectory(dir=OUT) as tmp:
+            paths = write_dense_subject(subj, tmp, "D", "trc")
+            ds = load_dataset([str(p) for p in paths], "trc", head_markers=list(HEAD_LABELS),
+                              exclude_markers=list(HEAD_LABELS), train=list(range(n_train)),
+                              heldout=list(range(n_train, n_sent))).displacements
+        A = ds.A[ds.row_sentence < n_train]
+        load_s = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        rk = rank_markers(A, ds.labels, method="auto", k_max=100, threads=threads)
+        rand_s = time.perf_counter() - t1
+        t1 = time.perf_counter()
+        rank_markers(A, ds.labels, method="gram", threads=threads)
+        gram_s = time.perf_counter() - t1
+        acc = route_accuracy(A, rk, threads=threads)
+        return {"rows": A.shape[0], "n": A.shape[1], "load_s": load_s, "rand_s": rand_s,
+                "gram_s": gram_s, "method": rk.method, **acc}
     if kind == "scipy":
         import scipy.linalg
         from threadpoolctl import threadpool_limits
@@ -430,7 +479,7 @@ def main(argv=None) -> int:
     ap.add_argument("--fill-baseline", action="store_true",
                     help="load20k: also the previous gap filling (minutes at full size)")
     ap.add_argument("--only", nargs="*", default=["peak", "rank10x", "load20k", "reader",
-                                                  "mem4g", "dense"])
+                                                  "mem4g", "dense", "talker"])
     args = ap.parse_args(argv)
     OUT.mkdir(parents=True, exist_ok=True)
     load = os.getloadavg()[0]
@@ -451,6 +500,8 @@ def main(argv=None) -> int:
         case_mem4g(args.threads, args.quick)
     if "dense" in args.only:
         case_dense(args.threads, args.reps, args.quick, args.scipy_dense)
+    if "talker" in args.only:
+        case_talker(args.threads, args.quick)
     peak_end = gemm_rate(args.threads)
     row("peak", "gemm_rate_at_end", peak_end, "GFLOP/s", "same thread count, after the cases")
     load_end = os.getloadavg()[0]
