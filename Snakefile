@@ -19,9 +19,15 @@ include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/compare.smk"
 
 
-# Tiny aggregation rules run in the main process's machine, never as cluster jobs of their own.
+# Small aggregation rules (tables and figures across datasets, the summary, the manifest) run
+# on the machine Snakemake runs on, never as cluster jobs of their own.
 localrules:
     all,
+    tabulate_selection,
+    plot_error_curves,
+    summarise_sweep,
+    summarise_talkers,
+    compare_with_papers,
     summarise_study,
     write_manifest,
 

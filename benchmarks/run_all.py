@@ -14,5 +14,6 @@ if __name__ == "__main__":
     quick = ["--quick"] if "--quick" in sys.argv[1:] else []
     rc = subprocess.call([sys.executable, str(HERE / "bench_qr.py"), *quick])
     rc |= subprocess.call([sys.executable, str(HERE / "bench_dense.py"), *quick])
-    rc |= subprocess.call([sys.executable, str(HERE / "bench_study.py")])
+    rc |= subprocess.call([sys.executable, str(HERE / "bench_study.py"), "--repeat", "3",
+                           "--readme", str(HERE.parent / "README.md")])
     sys.exit(rc)

@@ -3,12 +3,11 @@
 import numpy as np
 
 from facemotion.animation import FaceAnimation, animation_page, frame_indices, write_animation
-from facemotion.displacements import load_displacements
-from facemotion.loading import split_roles
+from facemotion.displacements import load_displacements, split_roles
 from facemotion.pivoted_qr import rank_for_study
 from facemotion.prediction import predict
 from facemotion.provenance import atomic_write_bytes, save_figure, sidecar_for_existing
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.snakemake_adapter import figure_paths, run_per_dataset
 
 
 def main(sm, log, prov):
@@ -46,4 +45,4 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "png"), "animation_still", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

@@ -1,9 +1,8 @@
 """How far from optimal is the pivoted-QR choice of k markers? (beyond the paper)"""
 
-from facemotion.displacements import load_displacements
-from facemotion.loading import split_roles
+from facemotion.displacements import load_displacements, split_roles
 from facemotion.provenance import write_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import run_per_dataset
 from facemotion.subset_optimality import subset_optimality
 
 
@@ -13,4 +12,4 @@ def main(sm, log, prov):
     write_table(table, sm.output.table, "optimality", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

@@ -3,14 +3,13 @@
 import numpy as np
 import pandas as pd
 
-from facemotion.displacements import load_displacements
+from facemotion.displacements import load_displacements, split_roles
 from facemotion.errors import InputError
-from facemotion.loading import split_roles
 from facemotion.pivoted_qr import rank_for_study
 from facemotion.plots.errors import plot_error_curves, plot_trajectory
 from facemotion.prediction import error_curve, predict
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.snakemake_adapter import figure_paths, run_per_dataset
 
 
 def main(sm, log, prov):
@@ -69,4 +68,4 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "traj_png"), "trajectory", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

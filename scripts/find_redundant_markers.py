@@ -3,7 +3,7 @@
 from facemotion.displacements import load_displacements
 from facemotion.provenance import write_table
 from facemotion.redundancy import find_redundant_markers, longest
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import run_per_dataset
 
 
 def main(sm, log, prov):
@@ -19,4 +19,4 @@ def main(sm, log, prov):
     write_table(longest(table, sm.params.top_n), sm.output.top, "redundancy", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

@@ -1,13 +1,12 @@
 """X = R11^-1 R12 for k main markers, region maps and orthogonal-direction maps (Figs. 4-7)."""
 
-from facemotion.displacements import load_displacements
+from facemotion.displacements import load_displacements, split_roles
 from facemotion.face_mesh import read_face_mesh
-from facemotion.loading import split_roles
 from facemotion.pivoted_qr import rank_for_study
 from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
 from facemotion.prediction import fit_coefficients
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.snakemake_adapter import figure_paths, run_per_dataset
 
 
 def main(sm, log, prov):
@@ -33,4 +32,4 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "orth_png"), "orthogonal_directions", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

@@ -2,12 +2,11 @@
 
 import numpy as np
 
-from facemotion.displacements import load_displacements
-from facemotion.loading import split_roles
+from facemotion.displacements import load_displacements, split_roles
 from facemotion.pivoted_qr import epsilon_rank, rank_for_study, ranking_summary, route_accuracy
 from facemotion.plots.rank import plot_r_values
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.snakemake_adapter import figure_paths, run_per_dataset
 
 
 def main(sm, log, prov):
@@ -36,4 +35,4 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "png"), "r_values", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

@@ -2,8 +2,7 @@
 
 import pandas as pd
 
-from facemotion.displacements import load_displacements
-from facemotion.loading import split_roles
+from facemotion.displacements import load_displacements, split_roles
 from facemotion.provenance import write_table
 from facemotion.snakemake_adapter import run_step
 from facemotion.sweeps import evaluate_point

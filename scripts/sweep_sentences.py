@@ -1,11 +1,10 @@
 """Stability of R against the number of sentences (paper Fig. 3)."""
 
-from facemotion.displacements import load_displacements
-from facemotion.loading import split_roles
+from facemotion.displacements import load_displacements, split_roles
 from facemotion.plots.sweep import plot_sentence_sweep
 from facemotion.provenance import save_figure, write_table
 from facemotion.sentence_sweep import sentence_sweep, stability
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.snakemake_adapter import figure_paths, run_per_dataset
 
 
 def main(sm, log, prov):
@@ -23,4 +22,4 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "png"), "sentence_sweep", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

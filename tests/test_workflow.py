@@ -128,6 +128,47 @@ def test_figure_formats_setting_adds_vector_files(smoke_runs):
     assert proc.returncode != 0 and "formats" in proc.stdout + proc.stderr
 
 
+def dry_run_rules(proc) -> set[str]:
+    """The rules of the jobs a dry run would run (its 'Job stats' table)."""
+    text = proc.stdout + proc.stderr
+    if "Nothing to be done" in text:
+        return set()
+    stats = text[text.index("Job stats:"):].split("\n")[3:]
+    rules = set()
+    for line in stats:
+        parts = line.split()
+        if len(parts) != 2 or parts[0] == "total":
+            break
+        rules.add(parts[0])
+    return rules
+
+
+# rules that gather every output (they rerun whenever anything does)
+GATHER = {"summarise_study", "write_manifest", "all", "compare_with_papers"}
+
+
+@pytest.mark.parametrize("setting, reruns", [
+    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers", "tabulate_selection"}),
+    ("qr:\n  noise_mm: 0.3\n", {"find_redundant_markers"}),
+    ("qr:\n  optimality_k_max: 2\n", {"compare_subsets"}),
+    ("qr:\n  replicates: 10\n", {"sweep_sentences"}),
+    ("eval:\n  trajectory_k: 3\n", {"evaluate_heldout", "plot_error_curves"}),
+    ("fit:\n  grid_n: 30\n", {"fit_regions"}),
+    ("animation:\n  grid_n: 12\n", {"animate_heldout"}),
+    ("gaps:\n  max_interp_s: 0.2\n", None),  # the data: everything after loading
+])
+def test_a_changed_setting_reruns_exactly_what_reads_it(smoke_runs, setting, reruns):
+    """Jobs over several datasets keep Snakemake's change detection per setting: a setting
+    reruns the jobs that read it (and the rules that gather every output), nothing else."""
+    a, _ = smoke_runs
+    got = dry_run_rules(run_snakemake(a, "-n", extra_config=setting)) - GATHER
+    if reruns is None:
+        assert "load_dataset" in got and "simulate_subject" not in got
+        assert "fit_lip_model" not in got
+    else:
+        assert got == reruns
+
+
 def test_report_builds_with_expected_entries(smoke_runs):
     a, _ = smoke_runs
     run_snakemake(a, "--report", "results/smoke/report.zip")

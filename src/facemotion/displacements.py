@@ -9,11 +9,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from facemotion.errors import InputError
 from facemotion.recording import Recording
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 NEUTRAL_MODES = ("first_frame", "mean_first_10")
 
@@ -241,3 +245,21 @@ def load_displacements(path) -> Displacements:
     from facemotion.displacement_file import open_displacements
 
     return open_displacements(path).load()
+
+
+def split_roles(d: Displacements, sentences: pd.DataFrame | str | Path
+                ) -> tuple[Displacements, Displacements | None]:
+    """Training and held-out parts of a dataset, by the ``role`` column of sentences.tsv."""
+    import pandas as pd  # here: reading A needs no pandas
+
+    if not isinstance(sentences, pd.DataFrame):
+        sentences = pd.read_csv(sentences, sep="\t", dtype={"sentence": str})
+    role = dict(zip(sentences["sentence"], sentences["role"], strict=True))
+    unknown = [s for s in d.sentences if s not in role]
+    if unknown:
+        raise InputError(f"sentences table does not list sentence(s) {unknown[:5]}")
+    train = [i for i, s in enumerate(d.sentences) if role[s] == "train"]
+    held = [i for i, s in enumerate(d.sentences) if role[s] == "heldout"]
+    if not train:
+        raise InputError("dataset has no training sentences")
+    return d.subset(train), (d.subset(held) if held else None)

@@ -19,6 +19,7 @@ from facemotion.displacements import (
     Displacements,
     build_displacements,
     check_same_take_layout,
+    split_roles,  # noqa: F401 (re-exported: it lived here)
 )
 from facemotion.errors import InputError
 from facemotion.input.segments import Segment, cut
@@ -237,22 +238,6 @@ def _report_copies(rep: pd.DataFrame, miss: np.ndarray, rec, pairs: list[tuple[s
             rest = [m for m in str(rep.loc[i, "fill_method"]).split("+") if m != "none"]
             rep.loc[i, "fill_method"] = "+".join([f"copy:{s}"] + rest)
     return rep
-
-
-def split_roles(d: Displacements, sentences: pd.DataFrame | str | Path
-                ) -> tuple[Displacements, Displacements | None]:
-    """Training and held-out parts of a dataset, by the ``role`` column of sentences.tsv."""
-    if not isinstance(sentences, pd.DataFrame):
-        sentences = pd.read_csv(sentences, sep="\t", dtype={"sentence": str})
-    role = dict(zip(sentences["sentence"], sentences["role"], strict=True))
-    unknown = [s for s in d.sentences if s not in role]
-    if unknown:
-        raise InputError(f"sentences table does not list sentence(s) {unknown[:5]}")
-    train = [i for i, s in enumerate(d.sentences) if role[s] == "train"]
-    held = [i for i, s in enumerate(d.sentences) if role[s] == "heldout"]
-    if not train:
-        raise InputError("dataset has no training sentences")
-    return d.subset(train), (d.subset(held) if held else None)
 
 
 def load(paths, *, heldout=(), fmt: str | None = None, head_markers=(), exclude_markers=(),

@@ -15,6 +15,7 @@ import io
 import json
 import os
 import subprocess
+import sys
 import tempfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -228,9 +229,9 @@ def save_figure(fig, paths: Iterable[str | os.PathLike], schema_id: str,
             # the layout (constrained: several passes over every tick label) is the same for
             # every format: keep the first one's instead of computing it again
             fig.set_layout_engine("none")
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
+    plt = sys.modules.get("matplotlib.pyplot")  # the plots build Figures without pyplot:
+    if plt is not None:  # importing it only to close them would cost every job ~0.3 s
+        plt.close(fig)
     return _write_sidecar(prov, f"figure/{schema_id}", FIGURE_SCHEMA_VERSION, paths)
 
 

@@ -15,8 +15,10 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
+from types import SimpleNamespace
 
 from facemotion.errors import FacemotionError
 from facemotion.provenance import Provenance
@@ -50,6 +52,82 @@ def provenance_for(sm, extra_inputs=()) -> Provenance:
     return Provenance(step=sm.rule, config=config, inputs=files)
 
 
+class _Part:
+    """Named files or params of one dataset's part of a job (attribute and item access)."""
+
+    def __init__(self, values: dict):
+        self._values = values
+
+    def __getattr__(self, name):
+        try:
+            return self._values[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __getitem__(self, name):
+        return self._values[name]
+
+    def keys(self):
+        return self._values.keys()
+
+    def items(self):
+        return self._values.items()
+
+
+def dataset_parts(sm):
+    """The datasets of a job that runs one step over several datasets, one at a time.
+
+    A rule over datasets (`rank_markers`, `evaluate_heldout`, ...) names its datasets in
+    ``params.datasets``; every named input and output is a list with one file per dataset, in
+    that order; ``params.per_dataset`` maps a dataset to the params that concern it alone (its
+    label); its entry ``inputs`` names inputs that only some datasets have, as lists of that
+    dataset's files (e.g. ``{"mesh": [path]}`` or ``{"mesh": []}``; the rule's input of that name
+    lists them all, for change detection). Yields ``(dataset, part, prov)``: ``part`` has
+    ``input``, ``output``, ``params`` and ``wildcards`` as a job of that dataset alone would
+    (``more`` and ``*_more``, a figure's other formats, are split into equal lists; the job's
+    own wildcards, e.g. ``k``, are kept), ``prov`` that dataset's provenance (its inputs only;
+    its params; its wildcards), so the sidecars are those of a per-dataset job. One job
+    instead of one per dataset: each job costs ~1 s of start-up.
+    """
+    datasets = list(sm.params.datasets)
+    n = len(datasets)
+    common = {k: v for k, v in sm.params.items() if k not in ("datasets", "per_dataset")}
+    per = sm.params.per_dataset if "per_dataset" in sm.params.keys() else {}
+
+    def pick(files, i, own=None):
+        out = {}
+        for k, v in files.items():
+            if own is not None and k in own:
+                out[k] = [str(f) for f in own[k]]
+                continue
+            v = [str(f) for f in v] if isinstance(v, (list, tuple)) else [str(v)]
+            if k == "more" or k.endswith("_more"):
+                # a figure's other formats (figs_more): the same number of files per dataset
+                if len(v) % n:
+                    raise ValueError(f"{sm.rule}: {k} has {len(v)} files for {n} datasets")
+                m = len(v) // n
+                out[k] = v[i * m:(i + 1) * m]
+                continue
+            if len(v) != n:
+                raise ValueError(f"{sm.rule}: {k} has {len(v)} files for {n} datasets")
+            out[k] = v[i]
+        return out
+
+    job_wildcards = dict(sm.wildcards.items()) if hasattr(sm.wildcards, "items") else {}
+    for i, d in enumerate(datasets):
+        mine = dict(per.get(d, {}))
+        own_inputs = mine.pop("inputs", {})
+        params = {**common, **mine}
+        wildcards = {"dataset": d, **{k: v for k, v in job_wildcards.items() if k != "dataset"}}
+        part = SimpleNamespace(input=_Part(pick(sm.input, i, own_inputs)),
+                               output=_Part(pick(sm.output, i)), params=_Part(params),
+                               wildcards=_Part(wildcards), rule=sm.rule, log=sm.log)
+        files = [f for f in _flatten(part.input._values.values()) if os.path.isfile(f)]
+        prov = Provenance(step=sm.rule, config={"wildcards": wildcards, "params": params},
+                          inputs=files)
+        yield d, part, prov
+
+
 def setup_logging(sm) -> logging.Logger:
     log = logging.getLogger("facemotion")
     log.setLevel(logging.INFO)
@@ -72,9 +150,9 @@ def run_step(sm, main: Callable) -> None:
     Outputs are written atomically by the provenance module, and Snakemake removes the
     outputs of a failed job, so nothing half-written is left behind.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
+    # no window system; set before matplotlib is imported (by the steps that draw, only)
+    os.environ["MPLBACKEND"] = "Agg"
+    started = time.process_time()  # CPU time of start-up: Python, Snakemake's preamble, imports
     log = setup_logging(sm)
     try:
         main(sm, log, provenance_for(sm))
@@ -83,4 +161,23 @@ def run_step(sm, main: Callable) -> None:
         log.error(msg)
         print(msg, file=sys.stderr)
         sys.exit(1)
-    log.info("done")
+    log.info("done: %.2f s CPU, of which %.2f s start-up before the step (modules it imports "
+             "while running are counted in the step)", time.process_time(), started)
+
+
+def run_per_dataset(sm, main: Callable) -> None:
+    """Run ``main(part, log, prov)`` for each dataset of a rule over several datasets (see
+    :func:`dataset_parts`): the script is written as for one dataset; an error names the
+    dataset."""
+
+    def each(sm, log, _prov):
+        for dataset, part, prov in dataset_parts(sm):
+            log.info("dataset %s", dataset)
+            try:
+                main(part, log, prov)
+            except FacemotionError as exc:
+                if dataset in str(exc):
+                    raise
+                raise type(exc)(f"dataset {dataset}: {exc}") from exc
+
+    run_step(sm, each)

@@ -105,7 +105,6 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
 from facemotion.recording import Recording
@@ -593,6 +592,8 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
                                                                    rot_rms)
         trans = rng.normal(0.0, 0.5 * head_translation_mm, 3) + _smooth_noise(
             rng, (F, 3), rate, 0.35, head_translation_mm)
+        from scipy.spatial.transform import Rotation  # here: not for synth.REGIONS
+
         R = Rotation.from_rotvec(rotvec).as_matrix()
         moved = np.matmul(pts - HEAD_PIVOT, R.transpose(0, 2, 1)) + (HEAD_PIVOT + trans[:, None])
         missing = np.zeros((F, len(labels)), bool)
@@ -633,6 +634,8 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
 def head_frame_points(points: np.ndarray, head_motion: np.ndarray) -> np.ndarray:
     """Undo the planted head motion (rows of ``truth['head_motion']``, one per frame) on
     points (frames, markers, 3): q = R^T (p - c - T) + c."""
+    from scipy.spatial.transform import Rotation  # here: not for synth.REGIONS
+
     R = Rotation.from_rotvec(head_motion[:, :3]).as_matrix()
     p = np.asarray(points, float) - HEAD_PIVOT - head_motion[:, None, 3:]
     return np.einsum("fji,fnj->fni", R, p) + HEAD_PIVOT

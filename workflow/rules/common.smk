@@ -200,6 +200,11 @@ from facemotion.provenance import figure_paths
 FIGURE_FORMATS = config["figures"]["formats"]
 
 
+def dataset_labels(datasets):
+    """What a rule over several datasets knows of each one alone (params.per_dataset)."""
+    return {d: {"label": DATASETS[d].label} for d in datasets}
+
+
 def fig(path):
     """A figure's files: PNG for looking (and the report), PDF/SVG for papers if asked for
     (setting figures.formats)."""
@@ -209,6 +214,12 @@ def fig(path):
 def fig_more(path):
     """A figure's files other than its PNG (the rule's `more` outputs)."""
     return fig(path)[1:]
+
+
+def figs_more(pattern, datasets):
+    """fig_more for each dataset of a rule over several datasets, in the order of `datasets`
+    (the same number of files per dataset: run_per_dataset splits them back)."""
+    return [f for d in datasets for f in fig_more(pattern.replace("{dataset}", d))]
 
 
 def meta(path):

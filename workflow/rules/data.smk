@@ -21,6 +21,8 @@ rule load_dataset:
         gap_fig_meta="<results>/{dataset}/data/gaps.meta.json",
     log:
         "<results>/logs/load_dataset/{dataset}.log",
+    benchmark:
+        "<results>/benchmarks/load_dataset/{dataset}.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -1,47 +1,73 @@
 # Held-out evaluation: error against k (Figs. 9-10) and a measured-vs-model trajectory.
+# One job over all datasets with held-out sentences (as the rules of qr.smk).
 
 
 rule evaluate_heldout:
     input:
-        npz="<results>/{dataset}/data/displacements.npz",
-        sentences="<results>/{dataset}/data/sentences.tsv",
+        npz=expand("<results>/{dataset}/data/displacements.npz", dataset=EVAL_DATASETS),
+        sentences=expand(
+            "<results>/{dataset}/data/sentences.tsv", dataset=EVAL_DATASETS
+        ),
     output:
-        curve="<results>/{dataset}/eval/error_curve.tsv",
-        curve_meta="<results>/{dataset}/eval/error_curve.meta.json",
-        png=report(
-            "<results>/{dataset}/eval/error_curve_plot.png",
-            caption="../report/error_curve.rst",
-            category="4. Held-out error",
-            subcategory="{dataset}",
+        curve=expand("<results>/{dataset}/eval/error_curve.tsv", dataset=EVAL_DATASETS),
+        curve_meta=expand(
+            "<results>/{dataset}/eval/error_curve.meta.json", dataset=EVAL_DATASETS
         ),
-        more=fig_more("<results>/{dataset}/eval/error_curve_plot"),
-        fig_meta="<results>/{dataset}/eval/error_curve_plot.meta.json",
-        traj="<results>/{dataset}/eval/trajectory_errors.tsv",
-        traj_meta="<results>/{dataset}/eval/trajectory_errors.meta.json",
-        traj_png=report(
-            "<results>/{dataset}/eval/trajectory.png",
-            caption="../report/trajectory.rst",
-            category="4. Held-out error",
-            subcategory="{dataset}",
+        png=[
+            report(
+                f"<results>/{d}/eval/error_curve_plot.png",
+                caption="../report/error_curve.rst",
+                category="4. Held-out error",
+                subcategory=d,
+            )
+            for d in EVAL_DATASETS
+        ],
+        more=figs_more("<results>/{dataset}/eval/error_curve_plot", EVAL_DATASETS),
+        fig_meta=expand(
+            "<results>/{dataset}/eval/error_curve_plot.meta.json",
+            dataset=EVAL_DATASETS,
         ),
-        traj_more=fig_more("<results>/{dataset}/eval/trajectory"),
-        traj_fig_meta="<results>/{dataset}/eval/trajectory.meta.json",
+        traj=expand(
+            "<results>/{dataset}/eval/trajectory_errors.tsv", dataset=EVAL_DATASETS
+        ),
+        traj_meta=expand(
+            "<results>/{dataset}/eval/trajectory_errors.meta.json",
+            dataset=EVAL_DATASETS,
+        ),
+        traj_png=[
+            report(
+                f"<results>/{d}/eval/trajectory.png",
+                caption="../report/trajectory.rst",
+                category="4. Held-out error",
+                subcategory=d,
+            )
+            for d in EVAL_DATASETS
+        ],
+        traj_more=figs_more("<results>/{dataset}/eval/trajectory", EVAL_DATASETS),
+        traj_fig_meta=expand(
+            "<results>/{dataset}/eval/trajectory.meta.json", dataset=EVAL_DATASETS
+        ),
     log:
-        "<results>/logs/evaluate_heldout/{dataset}.log",
+        "<results>/logs/evaluate_heldout.log",
+    benchmark:
+        "<results>/benchmarks/evaluate_heldout/all.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1
     resources:
         mem_mb=4000,
-        runtime=10,
+        runtime=10 + 2 * len(EVAL_DATASETS),
     params:
-        label=lambda wc: DATASETS[wc.dataset].label,
+        datasets=EVAL_DATASETS,
+        per_dataset=dataset_labels(EVAL_DATASETS),
         method=config["qr"]["method"],
         k_max=config["qr"]["k_max"],
         marker=config["eval"]["trajectory_marker"],
         sentence=config["eval"]["trajectory_sentence"],
         k=config["eval"]["trajectory_k"],
     message:
-        "evaluate_heldout {wildcards.dataset}: held-out error against k (L&M Figs. 9-10)"
+        "evaluate_heldout ({n} datasets): held-out error against k (L&M Figs. 9-10)".format(
+            n=len(EVAL_DATASETS)
+        )
     script:
         "../../scripts/evaluate_heldout.py"

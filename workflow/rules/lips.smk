@@ -9,6 +9,8 @@ rule simulate_lip_talker:
         truth_meta="<results>/lips/{lip_subject}/truth.meta.json",
     log:
         "<results>/logs/simulate_lip_talker/{lip_subject}.log",
+    benchmark:
+        "<results>/benchmarks/simulate_lip_talker/{lip_subject}.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -67,6 +69,8 @@ rule fit_lip_model:
         heldout_meta="<results>/lips/{lip_subject}/heldout_points.meta.json",
     log:
         "<results>/logs/fit_lip_model/{lip_subject}.log",
+    benchmark:
+        "<results>/benchmarks/fit_lip_model/{lip_subject}.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1

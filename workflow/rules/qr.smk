@@ -1,35 +1,50 @@
 # Marker ranking by QR with column pivoting (Lucero & Munhall 2008, Figs. 2-3, Table I).
+# Each rule runs over all datasets in one job (params.datasets; one file per dataset in every
+# named input and output, in that order): a job is mostly start-up, and a setting is read by
+# every dataset alike, so changing it reruns exactly the outputs that depend on it.
 
 
 rule rank_markers:
     input:
-        npz="<results>/{dataset}/data/displacements.npz",
-        sentences="<results>/{dataset}/data/sentences.tsv",
+        npz=expand("<results>/{dataset}/data/displacements.npz", dataset=DATASETS),
+        sentences=expand("<results>/{dataset}/data/sentences.tsv", dataset=DATASETS),
     output:
-        r_values="<results>/{dataset}/qr/r_values.tsv",
-        r_values_meta="<results>/{dataset}/qr/r_values.meta.json",
-        r_values_top="<results>/{dataset}/qr/r_values_top.tsv",
-        r_values_top_meta="<results>/{dataset}/qr/r_values_top.meta.json",
-        rank="<results>/{dataset}/qr/rank.tsv",
-        rank_meta="<results>/{dataset}/qr/rank.meta.json",
-        png=report(
-            "<results>/{dataset}/qr/r_values_plot.png",
-            caption="../report/r_values.rst",
-            category="2. Rank",
-            subcategory="{dataset}",
+        r_values=expand("<results>/{dataset}/qr/r_values.tsv", dataset=DATASETS),
+        r_values_meta=expand(
+            "<results>/{dataset}/qr/r_values.meta.json", dataset=DATASETS
         ),
-        more=fig_more("<results>/{dataset}/qr/r_values_plot"),
-        fig_meta="<results>/{dataset}/qr/r_values_plot.meta.json",
+        r_values_top=expand("<results>/{dataset}/qr/r_values_top.tsv", dataset=DATASETS),
+        r_values_top_meta=expand(
+            "<results>/{dataset}/qr/r_values_top.meta.json", dataset=DATASETS
+        ),
+        rank=expand("<results>/{dataset}/qr/rank.tsv", dataset=DATASETS),
+        rank_meta=expand("<results>/{dataset}/qr/rank.meta.json", dataset=DATASETS),
+        png=[
+            report(
+                f"<results>/{d}/qr/r_values_plot.png",
+                caption="../report/r_values.rst",
+                category="2. Rank",
+                subcategory=d,
+            )
+            for d in DATASETS
+        ],
+        more=figs_more("<results>/{dataset}/qr/r_values_plot", DATASETS),
+        fig_meta=expand(
+            "<results>/{dataset}/qr/r_values_plot.meta.json", dataset=DATASETS
+        ),
     log:
-        "<results>/logs/rank_markers/{dataset}.log",
+        "<results>/logs/rank_markers.log",
+    benchmark:
+        "<results>/benchmarks/rank_markers/all.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1
     resources:
         mem_mb=4000,
-        runtime=10,
+        runtime=10 + 2 * len(DATASETS),
     params:
-        label=lambda wc: DATASETS[wc.dataset].label,
+        datasets=list(DATASETS),
+        per_dataset=dataset_labels(DATASETS),
         method=config["qr"]["method"],
         k_max=config["qr"]["k_max"],
         top_n=config["qr"]["top_n"],
@@ -37,95 +52,127 @@ rule rank_markers:
         tolerances_mm=config["qr"]["tolerances_mm"],
         r_normalisation=config["qr"]["r_normalisation"],
     message:
-        "rank_markers {wildcards.dataset}: QR with column pivoting, epsilon-rank (L&M Fig. 2)"
+        "rank_markers ({n} datasets): QR with column pivoting, epsilon-rank (L&M Fig. 2)".format(
+            n=len(DATASETS)
+        )
     script:
         "../../scripts/rank_markers.py"
 
 
 rule find_redundant_markers:
     input:
-        npz="<results>/{dataset}/data/displacements.npz",
+        npz=expand("<results>/{dataset}/data/displacements.npz", dataset=DATASETS),
     output:
-        table="<results>/{dataset}/qr/redundancy.tsv",
-        meta="<results>/{dataset}/qr/redundancy.meta.json",
-        top="<results>/{dataset}/qr/redundancy_top.tsv",
-        top_meta="<results>/{dataset}/qr/redundancy_top.meta.json",
+        table=expand("<results>/{dataset}/qr/redundancy.tsv", dataset=DATASETS),
+        meta=expand("<results>/{dataset}/qr/redundancy.meta.json", dataset=DATASETS),
+        top=expand("<results>/{dataset}/qr/redundancy_top.tsv", dataset=DATASETS),
+        top_meta=expand(
+            "<results>/{dataset}/qr/redundancy_top.meta.json", dataset=DATASETS
+        ),
     log:
-        "<results>/logs/find_redundant_markers/{dataset}.log",
+        "<results>/logs/find_redundant_markers.log",
+    benchmark:
+        "<results>/benchmarks/find_redundant_markers/all.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1
     resources:
         mem_mb=4000,
-        runtime=10,
+        runtime=10 + 2 * len(DATASETS),
     params:
+        datasets=list(DATASETS),
         noise_mm=config["qr"]["noise_mm"],
         min_copy_s=config["qr"]["min_copy_s"],
         top_n=config["qr"]["top_n"],
     message:
-        "find_redundant_markers {wildcards.dataset}: markers that copy others"
+        "find_redundant_markers ({n} datasets): markers that copy others".format(
+            n=len(DATASETS)
+        )
     script:
         "../../scripts/find_redundant_markers.py"
 
 
 rule sweep_sentences:
     input:
-        npz="<results>/{dataset}/data/displacements.npz",
-        sentences="<results>/{dataset}/data/sentences.tsv",
+        npz=expand("<results>/{dataset}/data/displacements.npz", dataset=DATASETS),
+        sentences=expand("<results>/{dataset}/data/sentences.tsv", dataset=DATASETS),
     output:
-        sweep="<results>/{dataset}/qr/sentence_sweep.tsv",
-        sweep_meta="<results>/{dataset}/qr/sentence_sweep.meta.json",
-        stability="<results>/{dataset}/qr/stability.tsv",
-        stability_meta="<results>/{dataset}/qr/stability.meta.json",
-        agreement="<results>/{dataset}/qr/stability_agreement.tsv",
-        agreement_meta="<results>/{dataset}/qr/stability_agreement.meta.json",
-        png=report(
-            "<results>/{dataset}/qr/sentence_sweep_plot.png",
-            caption="../report/sentence_sweep.rst",
-            category="2. Rank",
-            subcategory="{dataset}",
+        sweep=expand("<results>/{dataset}/qr/sentence_sweep.tsv", dataset=DATASETS),
+        sweep_meta=expand(
+            "<results>/{dataset}/qr/sentence_sweep.meta.json", dataset=DATASETS
         ),
-        more=fig_more("<results>/{dataset}/qr/sentence_sweep_plot"),
-        fig_meta="<results>/{dataset}/qr/sentence_sweep_plot.meta.json",
+        stability=expand("<results>/{dataset}/qr/stability.tsv", dataset=DATASETS),
+        stability_meta=expand(
+            "<results>/{dataset}/qr/stability.meta.json", dataset=DATASETS
+        ),
+        agreement=expand(
+            "<results>/{dataset}/qr/stability_agreement.tsv", dataset=DATASETS
+        ),
+        agreement_meta=expand(
+            "<results>/{dataset}/qr/stability_agreement.meta.json", dataset=DATASETS
+        ),
+        png=[
+            report(
+                f"<results>/{d}/qr/sentence_sweep_plot.png",
+                caption="../report/sentence_sweep.rst",
+                category="2. Rank",
+                subcategory=d,
+            )
+            for d in DATASETS
+        ],
+        more=figs_more("<results>/{dataset}/qr/sentence_sweep_plot", DATASETS),
+        fig_meta=expand(
+            "<results>/{dataset}/qr/sentence_sweep_plot.meta.json", dataset=DATASETS
+        ),
     log:
-        "<results>/logs/sweep_sentences/{dataset}.log",
+        "<results>/logs/sweep_sentences.log",
+    benchmark:
+        "<results>/benchmarks/sweep_sentences/all.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1
     resources:
         mem_mb=4000,
-        runtime=20,
+        runtime=10 + 5 * len(DATASETS),
     params:
-        label=lambda wc: DATASETS[wc.dataset].label,
+        datasets=list(DATASETS),
+        per_dataset=dataset_labels(DATASETS),
         n_pivots=config["qr"]["sweep_pivots"],
         settle_tolerance=config["qr"]["settle_tolerance"],
         agreement_k=config["qr"]["agreement_k"],
         replicates=config["qr"]["replicates"],
         seed=config["qr"]["seed"],
     message:
-        "sweep_sentences {wildcards.dataset}: R against the number of sentences (L&M Fig. 3)"
+        "sweep_sentences ({n} datasets): R against the number of sentences (L&M Fig. 3)".format(
+            n=len(DATASETS)
+        )
     script:
         "../../scripts/sweep_sentences.py"
 
 
 rule compare_subsets:
     input:
-        npz="<results>/{dataset}/data/displacements.npz",
-        sentences="<results>/{dataset}/data/sentences.tsv",
+        npz=expand("<results>/{dataset}/data/displacements.npz", dataset=DATASETS),
+        sentences=expand("<results>/{dataset}/data/sentences.tsv", dataset=DATASETS),
     output:
-        table="<results>/{dataset}/qr/optimality.tsv",
-        meta="<results>/{dataset}/qr/optimality.meta.json",
+        table=expand("<results>/{dataset}/qr/optimality.tsv", dataset=DATASETS),
+        meta=expand("<results>/{dataset}/qr/optimality.meta.json", dataset=DATASETS),
     log:
-        "<results>/logs/compare_subsets/{dataset}.log",
+        "<results>/logs/compare_subsets.log",
+    benchmark:
+        "<results>/benchmarks/compare_subsets/all.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1
     resources:
         mem_mb=4000,
-        runtime=30,
+        runtime=10 + 5 * len(DATASETS),
     params:
+        datasets=list(DATASETS),
         k_max=config["qr"]["optimality_k_max"],
     message:
-        "compare_subsets {wildcards.dataset}: QR subset against exhaustive and greedy"
+        "compare_subsets ({n} datasets): QR subset against exhaustive and greedy".format(
+            n=len(DATASETS)
+        )
     script:
         "../../scripts/compare_subsets.py"

@@ -6,6 +6,8 @@ rule simulate_subject:
         directory("<results>/virtual/{subject}"),
     log:
         "<results>/logs/simulate_subject/{subject}.log",
+    benchmark:
+        "<results>/benchmarks/simulate_subject/{subject}.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1

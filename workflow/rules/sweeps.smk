@@ -10,6 +10,8 @@ rule run_sweep_point:
         meta="<results>/sweeps/{sweep}/{dataset}/{point}.meta.json",
     log:
         "<results>/logs/run_sweep_point/{sweep}_{dataset}_{point}.log",
+    benchmark:
+        "<results>/benchmarks/run_sweep_point/{sweep}_{dataset}_{point}.tsv"
     wildcard_constraints:
         point=r"default|[A-Za-z_]+~[^/]+",
     conda:
@@ -45,6 +47,8 @@ rule summarise_sweep:
         fig_meta="<results>/figures/sweep_{sweep}.meta.json",
     log:
         "<results>/logs/summarise_sweep/{sweep}.log",
+    benchmark:
+        "<results>/benchmarks/summarise_sweep/{sweep}.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -75,6 +79,8 @@ rule summarise_talkers:
         fig_meta="<results>/figures/talkers.meta.json",
     log:
         "<results>/logs/summarise_talkers.log",
+    benchmark:
+        "<results>/benchmarks/summarise_talkers/all.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -26,6 +26,8 @@ rule tabulate_selection:
         fig_meta="<results>/figures/r_values.meta.json",
     log:
         "<results>/logs/tabulate_selection.log",
+    benchmark:
+        "<results>/benchmarks/tabulate_selection/all.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -55,6 +57,8 @@ rule plot_error_curves:
         fig_meta="<results>/figures/error_curves.meta.json",
     log:
         "<results>/logs/plot_error_curves.log",
+    benchmark:
+        "<results>/benchmarks/plot_error_curves/all.tsv"
     conda:
         "../envs/facemotion.yaml"
     threads: 1

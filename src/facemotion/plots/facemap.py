@@ -12,7 +12,6 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib import patheffects
 from matplotlib.colors import Normalize
-from scipy.interpolate import griddata
 
 from facemotion.errors import InputError
 
@@ -70,6 +69,8 @@ def interpolate_field(xy: np.ndarray, values: np.ndarray, grid_n: int = 100
     if xy.shape[0] < 3:
         raise InputError(f"need at least 3 markers to interpolate over the face, got {len(xy)}")
     gx, gy = face_grid(xy, grid_n)
+    from scipy.interpolate import griddata  # here: scipy costs ~0.6 s to import
+
     z = griddata(xy, values, (gx, gy), method="cubic", fill_value=np.nan)
     return gx, gy, z
 
@@ -79,6 +80,8 @@ def interpolate_at(xy: np.ndarray, values: np.ndarray, points: np.ndarray) -> np
     (e.g. the markers themselves, where it returns their values)."""
     xy = np.asarray(xy, dtype=float)[:, :2]
     points = np.asarray(points, dtype=float)[..., :2]
+    from scipy.interpolate import griddata  # here: scipy costs ~0.6 s to import
+
     return griddata(xy, np.asarray(values, dtype=float), points, method="cubic",
                     fill_value=np.nan)
 
