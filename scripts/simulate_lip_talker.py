@@ -15,7 +15,8 @@ def main(sm, log, prov):
     arrays = {"truth": talker.truth, "activations": talker.activations.to_numpy(),
               "gestures": np.array(list(talker.activations.columns)),
               "nodes": talker.mesh.nodes, "tracked": np.array(talker.tracked_labels)}
-    write_artifact(sm.output.truth, npz_bytes(arrays), "lip_truth", prov)
+    write_artifact(sm.output.truth, npz_bytes(arrays), "lip_truth", prov,
+                   also=[sm.output.tracks])
     log.info("virtual lip talker: %d frames, %d tracked points", talker.recording.n_frames,
              len(talker.tracked_labels))
 

@@ -25,10 +25,13 @@ def main(sm, log, prov):
         write_artifact(out / "truth.npz", truth_npz_bytes(subject), "virtual_truth", prov)
         return
     subject = simulate_subject(p["design"], **kwargs)
+    takes = []
     for i, (rec, name) in enumerate(zip(subject.recordings, subject.names, strict=True)):
-        write_c3d(out / f"{sm.wildcards.subject}_s{i + 1:02d}.c3d", rec)
+        takes.append(out / f"{sm.wildcards.subject}_s{i + 1:02d}.c3d")
+        write_c3d(takes[-1], rec)
         log.info("wrote sentence %d/%d (%s)", i + 1, len(subject.names), name)
-    write_artifact(out / "truth.npz", truth_npz_bytes(subject), "virtual_truth", prov)
+    write_artifact(out / "truth.npz", truth_npz_bytes(subject), "virtual_truth", prov,
+                   also=takes)
 
 
 run_step(snakemake, main)  # noqa: F821

@@ -1,4 +1,5 @@
-"""results/<study>/manifest.tsv: every output with its checksum, schema version and sidecar."""
+"""results/<study>/manifest.tsv: every output of the current workflow with its checksum, schema
+version and sidecar (starting from the workflow's targets, not from what lies in results/)."""
 
 from facemotion.manifest import build_manifest
 from facemotion.provenance import atomic_write_bytes, table_bytes
@@ -7,7 +8,7 @@ from facemotion.snakemake_adapter import run_step
 
 def main(sm, log, prov):
     root = sm.params.root
-    table = build_manifest(root, exclude=(f"{root}/logs", f"{root}/manifest"))
+    table = build_manifest(root, targets=list(sm.input.outputs))
     log.info("%d outputs in the manifest", len(table))
     # The manifest is the index of the sidecars, so it has none of its own.
     atomic_write_bytes(sm.output.manifest, table_bytes(table))

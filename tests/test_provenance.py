@@ -64,3 +64,60 @@ def test_figures_are_byte_identical(tmp_path):
         assert (a / f"f.{suffix}").read_bytes() == (b / f"f.{suffix}").read_bytes()
     meta = json.loads((a / "f.meta.json").read_text())
     assert [o["path"].split("/")[-1] for o in meta["outputs"]] == ["f.png", "f.pdf", "f.svg"]
+
+
+def test_outputs_respect_the_umask(tmp_path):
+    """mkstemp makes 0600 files; every writer gives 0666 less the umask, like open()."""
+    import os
+    import stat
+
+    import numpy as np
+    import pandas as pd
+
+    from facemotion.animation import write_animation
+    from facemotion.displacements import Displacements, save_displacements
+    from facemotion.provenance import Provenance, write_table
+    from facemotion.readers import write_c3d, write_csv, write_trc
+    from facemotion.recording import Recording
+
+    rec = Recording(["a", "b"], np.arange(12.0).reshape(2, 2, 3) + 1, 100.0)
+    d = Displacements(np.zeros((6, 2)), ["a", "b"], ["s"], np.zeros(6), np.repeat([0, 1], 3),
+                      100.0, np.zeros((2, 2), bool), np.zeros(2), np.zeros((2, 3)))
+    old = os.umask(0o027)
+    try:
+        write_table(pd.DataFrame({"summary": [1]}), tmp_path / "t.tsv", "summary",
+                    Provenance("demo"))
+        write_c3d(tmp_path / "r.c3d", rec)
+        write_trc(tmp_path / "r.trc", rec)
+        write_csv(tmp_path / "r.csv", rec)
+        save_displacements(tmp_path / "d.npz", d)
+        write_animation(tmp_path / "a.gif", [np.zeros((8, 8, 3), np.uint8)] * 2, 10)
+    finally:
+        os.umask(old)
+    files = sorted(tmp_path.iterdir())
+    assert [p.name for p in files] == ["a.gif", "d.npz", "r.c3d", "r.csv", "r.trc",
+                                      "t.meta.json", "t.tsv"]
+    assert {oct(stat.S_IMODE(p.stat().st_mode)) for p in files} == {"0o640"}
+
+
+def test_c3d_cut_by_the_file_size_limit_is_an_error(tmp_path):
+    """ezc3d writes a C3D cut at the file-size limit without a word; write_c3d checks."""
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent(f"""
+        import errno, resource
+        import numpy as np
+        from facemotion.readers import write_c3d
+        from facemotion.recording import Recording
+        resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))
+        rec = Recording(["a", "b", "c"], np.ones((3000, 3, 3)), 100.0)
+        try:
+            write_c3d("{tmp_path}/big.c3d", rec)
+        except OSError as e:
+            print(e.errno == errno.EIO, e.filename)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.split() == ["True", f"{tmp_path}/big.c3d"], out.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -11,7 +12,7 @@ import pytest
 
 from facemotion.errors import InputError
 from facemotion.manifest import build_manifest
-from facemotion.provenance import Provenance, write_table
+from facemotion.provenance import Provenance, write_artifact, write_table
 from facemotion.sweeps import expand_grid, settled_after, top_k_frequency
 
 
@@ -59,19 +60,34 @@ def test_top_k_frequency_counts_datasets():
     assert freq.loc["34", "count"] == 1 and "38" not in freq.index
 
 
-def test_manifest_lists_outputs_and_detects_tampering(tmp_path, monkeypatch):
+def test_manifest_lists_the_current_jobs_and_detects_tampering(tmp_path, monkeypatch):
+    """Planted: job 1 writes a table that job 2 reads; job 2 writes a table and a figure; a
+    stale job (a subject no longer in the sheet) left its table. From job 2's table the
+    manifest reaches job 2's figure (same job) and job 1's table (an input), not the stale
+    one; a tampered file and a corrupt sidecar are errors naming the file."""
     monkeypatch.chdir(tmp_path)
     df = pd.DataFrame({"order": [1], "marker": ["40"], "r": [1.0], "r_rms": [0.1],
                        "r_rms_frame": [0.17], "r_normalised": [1.0], "r_normalisation": ["none"]})
-    write_table(df, "results/x/qr/r_values.tsv", "r_values", Provenance("rank_markers"))
-    m = build_manifest("results")
-    assert list(m["path"]) == ["results/x/qr/r_values.tsv"]
-    assert m.loc[0, "schema_id"] == "facemotion/r_values"
-    assert m.loc[0, "sidecar"] == "results/x/qr/r_values.meta.json"
-    with open("results/x/qr/r_values.tsv", "a") as f:
+    a = "results/x/qr/r_values.tsv"
+    write_table(df, a, "r_values", Provenance("rank_markers", job_outputs=[a]))
+    b, fig = "results/tables/summary.tsv", "results/tables/summary_plot.png"
+    prov = Provenance("tabulate", inputs=[a], job_outputs=[b, fig])
+    write_table(df, b, "summary", prov)
+    write_artifact(fig, b"png", "figure/summary", prov)
+    write_table(df, "results/old/qr/r_values.tsv", "r_values", Provenance("rank_markers"))
+    Path("results/old/qr/r_values.meta.json").write_text("garbage")  # stale: never read
+    m = build_manifest("results", targets=[b])
+    assert list(m["path"]) == sorted([a, b, fig])
+    assert m.set_index("path").loc[a, "schema_id"] == "facemotion/r_values"
+    assert m.set_index("path").loc[a, "sidecar"] == "results/x/qr/r_values.meta.json"
+    with open(a, "a") as f:
         f.write("tampered\n")
     with pytest.raises(InputError, match="checksum differs"):
-        build_manifest("results")
+        build_manifest("results", targets=[b])
+    Path("results/tables/summary.meta.json").write_text('{"outputs": [')
+    with pytest.raises(InputError, match=r"^results/tables/summary\.meta\.json: not a valid "
+                       r"sidecar \(JSONDecodeError"):
+        build_manifest("results", targets=[b])
 
 
 def test_script_adapter_turns_errors_into_one_line(tmp_path):

@@ -19,7 +19,6 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import tempfile
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
@@ -43,6 +42,7 @@ from facemotion.plots.facemap import (
     interpolate_field,
     label_index,
 )
+from facemotion.provenance import atomic_path
 
 SURFACE_CMAP = "YlOrBr"  # colour-blind-safe sequential map for |displacement|, light at 0
 FIGSIZE = (8.0, 4.6)  # inches; at DPI 100 -> 800 x 460 pixels (even, as libx264 needs)
@@ -404,19 +404,11 @@ def write_animation(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: 
     if first is None:
         raise InputError(f"{path}: no frames to write")
     frames = itertools.chain([first], frames)  # streamed to the MP4 encoder
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=f".{fmt}")
-    os.close(fd)
-    try:
+    with atomic_path(path, suffix=f".{fmt}") as tmp:
         if fmt == "gif":
-            _write_gif(tmp, list(frames), fps)
+            _write_gif(str(tmp), list(frames), fps)
         else:
-            _write_mp4(tmp, frames, fps, crf)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+            _write_mp4(str(tmp), frames, fps, crf)
     return path
 
 

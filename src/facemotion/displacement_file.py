@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from facemotion.errors import InputError
+from facemotion.provenance import current_umask
 
 #: Default bound on the bytes of A one block holds (the ``block_mb`` setting of consumers).
 BLOCK_BYTES = 64 * 2**20
@@ -117,8 +118,12 @@ class DisplacementsWriter:
         if self.written + block.shape[0] > self.rows:
             self.abort()
             raise InputError(f"{self.path}: more than the {self.rows} rows declared for A")
-        if block.size:
-            self._a.write(block.reshape(-1).view(np.uint8))
+        try:
+            if block.size:
+                self._a.write(block.reshape(-1).view(np.uint8))
+        except OSError as e:
+            self.abort()
+            raise OSError(e.errno, e.strerror, str(self.path)) from None
         self.written += block.shape[0]
 
     def close(self, **arrays) -> None:
@@ -135,7 +140,11 @@ class DisplacementsWriter:
                     _write_array(self._zf, name, np.asarray(a))
             self._zf.close()
             self._fh.close()
+            os.chmod(self._tmp, 0o666 & ~current_umask())  # mkstemp made it 0600
             os.replace(self._tmp, self.path)
+        except OSError as e:  # disk full, file-size limit: name the output, not the temp file
+            self.abort()
+            raise OSError(e.errno, e.strerror, str(self.path)) from None
         except BaseException:
             self.abort()
             raise

@@ -10,6 +10,7 @@ reproduces every byte.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
@@ -17,7 +18,7 @@ import os
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -133,6 +134,7 @@ class Provenance:
     step: str
     config: Mapping[str, Any] = field(default_factory=dict)
     inputs: Iterable[str] = ()
+    job_outputs: Iterable[str] = ()  # every output the job declares (for the manifest)
 
     def sidecar(self, schema_id: str, schema_version: str, outputs: Iterable[str]) -> dict:
         return {
@@ -146,6 +148,7 @@ class Provenance:
             "inputs": [{"path": str(p), "sha256": sha256_file(p)}
                        for p in sorted(set(map(str, self.inputs))) if os.path.isfile(p)],
             "outputs": [{"path": str(p), "sha256": sha256_file(p)} for p in outputs],
+            "job_outputs": sorted(set(map(str, self.job_outputs))),
         }
 
 
@@ -155,19 +158,57 @@ def sidecar_path(path: str | os.PathLike) -> Path:
     return p.with_name(p.stem + SIDECAR_SUFFIX)
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write to a temporary file beside ``path`` and rename it, so no half-written file is seen."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+def current_umask() -> int:
+    """The process's umask (read by setting it and setting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def temp_prefix(path: str | os.PathLike) -> str:
+    """Temporary files of an output are named ``.<name>.<random>.tmp<suffix>`` beside it."""
+    return f".{Path(path).name}."
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
+    """A temporary path beside ``path``, renamed onto it if the block succeeds.
+
+    The file gets the mode a plain ``open`` would give it (0666 less the umask; ``mkstemp``
+    makes 0600, which others on a shared file system could not read). On failure the
+    temporary file is removed and an OSError names ``path`` (not the temporary name).
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=temp_prefix(target),
+                               suffix=f".tmp{suffix}")
+    os.close(fd)
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
+        yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~current_umask())
+        os.replace(tmp, target)
+    except OSError as e:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if e.filename in (None, tmp):
+            raise OSError(e.errno, e.strerror, str(target)) from None
+        raise
     except BaseException:
-        if os.path.exists(tmp):
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write to a temporary file beside ``path`` and rename it, so no half-written file is seen."""
+    with atomic_path(path) as tmp:
+        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
+        finally:
+            os.close(fd)
 
 
 def _write_sidecar(prov: Provenance, schema_id: str, version: str, outputs: list[str]) -> Path:
@@ -236,10 +277,11 @@ def save_figure(fig, paths: Iterable[str | os.PathLike], schema_id: str,
 
 
 def write_artifact(path: str | os.PathLike, data: bytes, schema_id: str, prov: Provenance,
-                   version: str = "1") -> Path:
-    """Write any other output (an animation, an npz) with a sidecar."""
+                   version: str = "1", also: Iterable[str | os.PathLike] = ()) -> Path:
+    """Write any other output (an animation, an npz) with a sidecar; the sidecar also lists
+    the files ``also`` (already written by the same job, e.g. the C3D files of a subject)."""
     atomic_write_bytes(path, data)
-    return _write_sidecar(prov, schema_id, version, [str(path)])
+    return _write_sidecar(prov, schema_id, version, [str(path), *map(str, also)])
 
 
 def sidecar_for_existing(path: str | os.PathLike, schema_id: str, prov: Provenance,

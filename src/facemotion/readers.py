@@ -19,21 +19,20 @@ naming the file and the line. Messages never quote a file's content beyond a sho
 
 from __future__ import annotations
 
-import contextlib
 import csv
+import errno
 import io
 import logging
 import math
 import os
 import struct
-import tempfile
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from facemotion.errors import InputError, token
+from facemotion.provenance import atomic_path
 from facemotion.recording import Recording
 
 FORMATS = ("c3d", "trc", "csv", "qualisys_tsv", "optitrack_csv", "openface_csv")
@@ -147,23 +146,6 @@ def _check_readable(path) -> Path:
     if not os.access(p, os.R_OK):
         raise InputError(f"{p}: file is not readable (permission denied)")
     return p
-
-
-@contextlib.contextmanager
-def _atomic_path(path) -> Iterator[Path]:
-    """A temporary path in the target's directory, renamed onto ``path`` if the block succeeds."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}",
-                               dir=target.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
 
 
 # ----------------------------------------------------------------------------------------- C3D
@@ -388,8 +370,14 @@ def write_c3d(path, rec: Recording) -> None:
     c["data"]["meta_points"]["residuals"] = residuals
     c["data"]["meta_points"]["camera_masks"] = np.zeros((7, rec.n_markers, rec.n_frames),
                                                         dtype=bool)
-    with _atomic_path(path) as tmp:
+    with atomic_path(path, suffix=".c3d") as tmp:  # ezc3d adds .c3d otherwise
         c.write(str(tmp))
+        # ezc3d does not report a failed write (disk full, file-size limit): check the size
+        try:
+            check_c3d_size(tmp)
+        except InputError:
+            raise OSError(errno.EIO, "the written C3D file is incomplete (disk full or file-size "
+                          "limit?)", str(path)) from None
 
 
 # ----------------------------------------------------------------------------------------- TRC
@@ -616,7 +604,7 @@ def write_trc(path, rec: Recording) -> None:
     flat = rec.points.reshape(F, 3 * n)
     for f in range(F):
         out.append(f"{f + 1}\t{f / rec.rate:.6f}\t" + "\t".join(_fmt(x) for x in flat[f]))
-    with _atomic_path(target) as tmp:
+    with atomic_path(target) as tmp:
         tmp.write_text("\n".join(out) + "\n", encoding="utf-8")
 
 
@@ -764,7 +752,7 @@ def write_csv(path, rec: Recording) -> None:
     out = [",".join(header)]
     for f in range(rec.n_frames):
         out.append(f"{f / rec.rate:.9g}," + ",".join(_fmt(x) for x in flat[f]))
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         tmp.write_text("\n".join(out) + "\n", encoding="utf-8")
 
 

@@ -12,6 +12,8 @@ A script is a thin adapter::
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import logging
 import os
 import sys
@@ -21,7 +23,9 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from facemotion.errors import FacemotionError
-from facemotion.provenance import Provenance
+from facemotion.provenance import Provenance, temp_prefix
+
+_WRITE_ERRORS = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO}
 
 
 def _flatten(files) -> list[str]:
@@ -44,12 +48,44 @@ def figure_paths(output, key: str = "png") -> list[str]:
 
 
 def provenance_for(sm, extra_inputs=()) -> Provenance:
-    """Provenance of a Snakemake job: rule name, its params (the config used), its inputs."""
+    """Provenance of a Snakemake job: rule name, its params (the config used), its inputs and
+    the outputs it declares."""
     params = {k: v for k, v in sm.params.items()} if hasattr(sm.params, "items") else {}
     wildcards = {k: v for k, v in sm.wildcards.items()} if hasattr(sm.wildcards, "items") else {}
     config = {"wildcards": wildcards, "params": params}
     files = [f for f in _flatten(sm.input) if os.path.isfile(f)] + list(extra_inputs)
-    return Provenance(step=sm.rule, config=config, inputs=files)
+    return Provenance(step=sm.rule, config=config, inputs=files,
+                      job_outputs=_flatten(getattr(sm, "output", [])))
+
+
+def clean_temporary_files(outputs) -> list[Path]:
+    """Remove what an earlier, killed run of the job left beside its outputs: the hidden
+    temporary files ``.<name>.<random>.tmp<suffix>`` of the atomic writers (and the older
+    ``.<stem>.<random>.<suffix>`` form). Returns the files removed."""
+    removed = []
+    for out in map(Path, _flatten(outputs)):
+        if not out.parent.is_dir():
+            continue
+        prefixes = (temp_prefix(out), f".{out.stem}.")
+        for p in out.parent.iterdir():
+            if p.name.startswith(prefixes) and p.is_file() and p != out:
+                with contextlib.suppress(OSError):
+                    p.unlink()
+                    removed.append(p)
+    return removed
+
+
+def fault_message(exc: BaseException) -> str:
+    """One line for a fault of the machine rather than of the data (disk full, file-size
+    limit, out of memory), naming the file."""
+    if isinstance(exc, MemoryError):
+        return "out of memory"
+    what = getattr(exc, "strerror", None) or (str(exc).strip().splitlines()
+                                               or [type(exc).__name__])[0]
+    if getattr(exc, "filename", None):
+        verb = "cannot write" if exc.errno in _WRITE_ERRORS else "cannot access"
+        return f"{verb} {exc.filename}: {what}"
+    return what
 
 
 class _Part:
@@ -124,11 +160,13 @@ def dataset_parts(sm):
                                wildcards=_Part(wildcards), rule=sm.rule, log=sm.log)
         files = [f for f in _flatten(part.input._values.values()) if os.path.isfile(f)]
         prov = Provenance(step=sm.rule, config={"wildcards": wildcards, "params": params},
-                          inputs=files)
+                          inputs=files, job_outputs=_flatten(part.output._values.values()))
         yield d, part, prov
 
 
 def setup_logging(sm) -> logging.Logger:
+    # a log that cannot be written (disk full) must not print logging's own traceback
+    logging.raiseExceptions = False
     log = logging.getLogger("facemotion")
     log.setLevel(logging.INFO)
     for h in list(log.handlers):
@@ -147,22 +185,35 @@ def setup_logging(sm) -> logging.Logger:
 def run_step(sm, main: Callable) -> None:
     """Run ``main(sm, log, prov)``; a FacemotionError becomes one clear line and exit 1.
 
-    Outputs are written atomically by the provenance module, and Snakemake removes the
-    outputs of a failed job, so nothing half-written is left behind.
+    A fault of the machine (disk full, file-size limit, out of memory) is one line too,
+    naming the file. Outputs are written atomically by the provenance module, and Snakemake
+    removes the outputs of a failed job, so nothing half-written is left behind; temporary
+    files a killed run left are removed when the job starts again.
     """
     # no window system; set before matplotlib is imported (by the steps that draw, only)
     os.environ["MPLBACKEND"] = "Agg"
     started = time.process_time()  # CPU time of start-up: Python, Snakemake's preamble, imports
     log = setup_logging(sm)
     try:
+        for p in clean_temporary_files(getattr(sm, "output", [])):
+            log.info("removed %s, left by an earlier run of this job", p)
         main(sm, log, provenance_for(sm))
     except FacemotionError as exc:
-        msg = f"facemotion: {sm.rule}: {exc}"
-        log.error(msg)
-        print(msg, file=sys.stderr)
-        sys.exit(1)
+        _fail(log, f"facemotion: {sm.rule}: {exc}")
+    except (OSError, MemoryError) as exc:
+        _fail(log, f"facemotion: {sm.rule}: {fault_message(exc)}")
     log.info("done: %.2f s CPU, of which %.2f s start-up before the step (modules it imports "
              "while running are counted in the step)", time.process_time(), started)
+
+
+def _fail(log: logging.Logger, msg: str) -> None:
+    """The one line of a failed job: in its log and on stderr; exit status 1."""
+    log.error(msg)
+    for h in log.handlers:
+        with contextlib.suppress(Exception):
+            h.flush()
+    print(msg, file=sys.stderr, flush=True)
+    sys.exit(1)
 
 
 def run_per_dataset(sm, main: Callable) -> None:

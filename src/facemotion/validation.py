@@ -314,3 +314,34 @@ def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,
     else:
         clean = rec
     return clean, TakeCheck(mask, rec.units, rec.units_source, conflict, spread)
+
+
+def margins(rec: Recording) -> dict:
+    """What the limits are compared with, measured on one take: the fastest frame-to-frame
+    speed, the largest distance to the face centre, the spread (for choosing the defaults)."""
+    pts = rec.points
+    with np.errstate(invalid="ignore"):
+        speed = np.linalg.norm(np.diff(pts, axis=0), axis=2) * rec.rate
+        centre = np.nanmedian(pts, axis=1, keepdims=True)
+        dist = np.linalg.norm(pts - centre, axis=2)
+    return {"rate_hz": rec.rate, "frames": rec.n_frames, "markers": rec.n_markers,
+            "max_speed_mm_s": float(np.nanmax(speed)) if speed.size else float("nan"),
+            "max_distance_mm": float(np.nanmax(dist)), "spread_mm": face_spread(rec),
+            "outliers": int(find_outliers(rec, Limits())[0].sum())}
+
+
+if __name__ == "__main__":  # python -m facemotion.validation FILE... : the margins per file
+    import sys
+
+    from facemotion.readers import read_recording
+
+    print("file\trate_hz\tframes\tmarkers\tmax_speed_mm_s\tmax_distance_mm\tspread_mm\t"
+          "outliers")
+    for arg in sys.argv[1:]:
+        try:
+            m = margins(read_recording(arg, arg.rsplit(".", 1)[-1]))
+        except InputError as exc:
+            sys.exit(f"facemotion: {exc}")
+        print(f"{arg.rsplit('/', 1)[-1]}\t{m['rate_hz']:g}\t{m['frames']}\t{m['markers']}\t"
+              f"{m['max_speed_mm_s']:.0f}\t{m['max_distance_mm']:.0f}\t{m['spread_mm']:.1f}\t"
+              f"{m['outliers']}")
