@@ -15,8 +15,11 @@ def main(sm, log, prov):
     gaps, checks = sm.params.gaps, sm.params.checks
     limits = Limits(max_distance_mm=gaps["max_distance_mm"],
                     max_speed_mm_s=gaps["max_speed_mm_s"], outliers=gaps["outliers"],
+                    max_held_frames=gaps["max_held_frames"],
                     min_take_frames=checks["min_take_frames"],
-                    face_spread_mm=tuple(checks["face_spread_mm"]))
+                    face_spread_mm=tuple(checks["face_spread_mm"]),
+                    rate_hz=tuple(checks["rate_hz"]),
+                    max_shape_rms_mm=checks["max_shape_rms_mm"])
     loaded = load_dataset(
         recordings, ds["format"], units=ds["units"], head_markers=ds["head_markers"],
         exclude_markers=ds["exclude_markers"], include_markers=ds["include_markers"],

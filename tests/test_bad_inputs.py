@@ -98,8 +98,9 @@ def run_load(tmp: Path, paths, fmt="c3d", *, units=None, head=HEAD, exclude=HEAD
              "gap_report.meta.json", "sentences.tsv", "sentences.meta.json", "gaps.png",
              "gaps.pdf", "gaps.meta.json"]
     g = {"max_interp_s": 0.1, "long_gaps": "pca", "outliers": "gaps", "max_distance_mm": 250,
-         "max_speed_mm_s": 1000} | (gaps or {})
-    c = {"min_take_frames": 10, "face_spread_mm": [10, 300]} | (checks or {})
+         "max_speed_mm_s": 1000, "max_held_frames": 2} | (gaps or {})
+    c = {"min_take_frames": 10, "face_spread_mm": [10, 300], "rate_hz": [10, 2000],
+         "max_shape_rms_mm": 20} | (checks or {})
     recordings = [str(p) for p in paths]
     ds = {"dataset": "D", "label": "D", "subject": "D", "format": fmt, "units": units,
           "head_markers": list(head), "exclude_markers": list(exclude),
@@ -453,6 +454,80 @@ def case_head_markers_lost(tmp, takes):
     return _c3d(tmp, takes, (2, occlude)), {}
 
 
+def case_axes_swapped(tmp, takes):
+    def swap(pts, rec):
+        pts[..., [1, 2]] = pts[..., [2, 1]]
+    return _c3d(tmp, takes, (3, swap)), {}
+
+
+def case_another_face(tmp, takes):
+    t = list(takes)
+    rng = np.random.default_rng(5)
+    order = rng.permutation(t[2].n_markers)  # every label on another marker
+    t[2] = Recording(t[2].labels, t[2].points[:, order], t[2].rate)
+    return write_takes(tmp / "data", t), {"head": (), "exclude": ()}
+
+
+def case_csv_time_in_ms(tmp, takes):
+    p = _c3d(tmp, takes, fmt="csv")
+    for q in p:
+        lines = lines_of(q)
+        for i in range(1, len(lines) - 1):
+            t, rest = lines[i].split(",", 1)
+            lines[i] = f"{float(t) * 1000:.6f},{rest}"
+        set_lines(q, lines)
+    return p, {}
+
+
+def case_trc_nan_rate(tmp, takes):
+    p = _c3d(tmp, takes, fmt="trc")
+    lines = lines_of(p[4])
+    lines[2] = "NaN" + lines[2][lines[2].index("\t"):]
+    set_lines(p[4], lines)
+    return p, {}
+
+
+def case_trc_spaces_for_tabs(tmp, takes):
+    p = _c3d(tmp, takes, fmt="trc")
+    lines = lines_of(p[4])
+    lines[6:] = [x.replace("\t", " ") for x in lines[6:]]
+    set_lines(p[4], lines)
+    return p, {}
+
+
+def case_c3d_duplicate_label(tmp, takes):
+    p = write_takes(tmp / "data", takes)
+    labels = [("Chin" if x == "Mouth_Up" else x) for x in takes[4].labels]
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [takes[4].rate]
+    c["parameters"]["POINT"]["LABELS"]["value"] = tuple(labels)
+    c["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    pts = np.ones((4, len(labels), takes[4].n_frames))
+    pts[:3] = takes[4].points.transpose(2, 1, 0)
+    c["data"]["points"] = pts
+    c.write(str(p[4]))
+    return p, {}
+
+
+def case_frozen_take(tmp, takes):
+    t = list(takes)
+    t[4] = Recording(t[4].labels, np.repeat(t[4].points[:1], FRAMES, axis=0), t[4].rate)
+    return write_takes(tmp / "data", t), {}
+
+
+def case_label_case_differs(tmp, takes):
+    t = list(takes)
+    t[1] = Recording([x.lower() if x == "Chin" else x for x in t[1].labels], t[1].points,
+                     t[1].rate)
+    return write_takes(tmp / "data", t), {}
+
+
+def case_same_sentence_name(tmp, takes):
+    a = write_takes(tmp / "data" / "s1", takes[:3])
+    b = write_takes(tmp / "data" / "s2", takes[3:])
+    return a + b, {}
+
+
 REFUSED = [
     (case_missing_file, [r"take5\.c3d", "not found"]),
     (case_renamed_marker, [r"take3\.c3d", "Chin"]),
@@ -479,7 +554,7 @@ REFUSED = [
     (case_trc_says_m_for_mm, [r"take1\.trc", "read in m", r"6\.\d+e\+04 mm", "file"]),
     (case_csv_in_metres, [r"take1\.csv", "read in mm", r"0\.06\d+ mm", "10-300"]),
     (case_csv_field_missing, [r"take5\.csv", "line 10 has 123 fields", "124"]),
-    (case_csv_rows_swapped, [r"take5\.csv", "not uniformly sampled"]),
+    (case_csv_rows_swapped, [r"take5\.csv", r"line 7: 'time' .* does not increase"]),
     (case_csv_secret_content, [r"take5\.csv", "first column must be 'time'"]),
     (case_outlier_error_mode, [r"take2\.c3d", "'Chin'", "frame 31", "gaps.outliers"]),
     (case_flipped_bits_error_mode, [r"take2\.c3d", "outlier", "gaps.outliers"]),
@@ -489,6 +564,16 @@ REFUSED = [
     (case_long_gap_error, [r"take3\.c3d", "'Chin'", "gap of 30 frame", "long_gaps"]),
     (case_all_markers_lost, [r"take4\.c3d", r"frame 0 \(t = 0\.000 s\) has only 0 of the head"]),
     (case_head_markers_lost, [r"take3\.c3d", "frame 25|t = 0.41"]),
+    (case_axes_swapped, [r"take4\.c3d", "mirror image of", r"take1\.c3d", "axes swapped"]),
+    (case_another_face, [r"take3\.c3d", r"differs from .*take1\.c3d's by \d+", "relabelled"]),
+    (case_csv_time_in_ms, [r"take1\.csv", r"frame rate 0\.06 Hz", "checks.rate_hz"]),
+    (case_trc_nan_rate, [r"take5\.trc", "DataRate must be positive"]),
+    (case_trc_spaces_for_tabs, [r"take5\.trc", "line 7 has 1 fields"]),
+    (case_c3d_duplicate_label, [r"take5\.c3d", "duplicate marker labels", "Chin"]),
+    (case_label_case_differs, [r"take2\.c3d", "Chin|chin"]),
+    (case_same_sentence_name, ["take1", "repeated|twice"]),
+    (case_frozen_take, [r"take5\.c3d", "of the take's 2460 measured samples are outliers",
+                        "held"]),
 ]
 
 
@@ -530,6 +615,18 @@ def test_flipped_bits_are_reported_outliers(tmp_path, takes):
     assert gap["outlier_frames"].sum() >= 1
     with np.load(o.out / "displacements.npz") as z:
         assert np.abs(z["A"]).max() < 100  # no 800 mm spike reaches A
+
+
+def test_held_marker_is_a_reported_gap(tmp_path, takes):
+    """A marker whose producer repeated the last value for 40 frames: 39 held samples."""
+    def hold(pts, rec):
+        j = rec.index("Chin")
+        pts[10:50, j] = pts[10, j]
+    o = run_load(tmp_path, _c3d(tmp_path, takes, (2, hold)))
+    assert o.code == 0, o.stderr
+    gap = pd.read_csv(o.out / "gap_report.tsv", sep="\t").set_index("marker")
+    assert gap.loc["Chin", "outlier_frames"] == 39 and gap["outlier_frames"].sum() == 39
+    assert "39 held" in o.log
 
 
 def test_sheet_units_never_override_the_file(tmp_path, takes):

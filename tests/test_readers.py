@@ -327,6 +327,8 @@ def test_c3d_with_more_frames_than_declared(tmp_path):
     (tmp_path / "b.c3d").write_bytes(raw + bytes(2048))
     with pytest.raises(InputError, match=r"b\.c3d: C3D file holds .* bytes after the 20 frames"):
         read_c3d(tmp_path / "b.c3d")
+    with pytest.raises(InputError, match="without frames"):
+        write_c3d(tmp_path / "empty.c3d", Recording(["a", "b"], np.zeros((0, 2, 3)), 100.0))
     long = Recording(["a", "b"], np.zeros((65536, 2, 3)), 100.0)
     with pytest.raises(InputError, match="65536 frames cannot be written to C3D"):
         write_c3d(tmp_path / "long.c3d", long)

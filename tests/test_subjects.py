@@ -127,3 +127,25 @@ def test_dense_designs_are_written_in_their_format(tmp_path):
                         + "\tsimulate\n")
     with pytest.raises(InputError, match="written as c3d, not 'trc'"):
         read_subject_sheet(sheet)
+
+
+def test_sheet_is_read_literally(tmp_path):
+    """A '#' in a cell is part of it (no comment character); a byte-order mark is ignored; a
+    marker listed twice and a directory as recordings are errors naming the sheet's row."""
+    (tmp_path / "take#1.trc").write_text("")
+    (tmp_path / "takes").mkdir()
+    sheet = tmp_path / "s.tsv"
+    sheet.write_text("\ufeffsubject\trecordings\tformat\thead_markers\texclude_markers\n"
+                     "A\ttake#1.trc\ttrc\t\tL#1\n", encoding="utf-8")
+    a = read_subject_sheet(sheet)["A"]
+    assert a.recordings == [str(tmp_path / "take#1.trc")] and a.exclude_markers == ["L#1"]
+    sheet.write_text("subject\trecordings\tformat\thead_markers\texclude_markers\n"
+                     "A\ttake#1.trc\ttrc\tH1,H2,H1\t\n")
+    with pytest.raises(InputError, match=r"row 2: column head_markers of subject 'A' lists "
+                                         r"marker\(s\) H1 twice"):
+        read_subject_sheet(sheet)
+    sheet.write_text("subject\trecordings\tformat\thead_markers\texclude_markers\n"
+                     "A\ttakes\ttrc\t\t\n")
+    with pytest.raises(InputError, match=r"row 2: recordings .*takes of subject 'A' is a "
+                                         r"directory; give a file or a glob such as takes/\*\.trc"):
+        read_subject_sheet(sheet)

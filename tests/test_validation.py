@@ -198,3 +198,42 @@ def test_vectorised_outlier_screen_equals_the_per_marker_test():
     np.testing.assert_array_equal(mask, ref)
     assert mask[100, 3] and mask[300:320, 7].all() and mask[400, 20]
     assert {note.split("'")[1] for note in notes} == {"m3", "m7", "m20"}
+
+
+def test_same_face_across_takes(jaw):
+    """One-second windows of the jaw exercise (mouth held open in some) are the same face;
+    a mirrored take and a take with its labels shuffled are not."""
+    from facemotion.validation import check_same_shape
+
+    rec = read_c3d(ROOT / "animface" / "animface_jaw.c3d")
+    windows = [Recording(rec.labels, rec.points[a:a + 60], rec.rate, source=f"w{a}")
+               for a in range(0, 1530, 60)]
+    rms = check_same_shape(windows, Limits())
+    assert max(rms) < 10 and rms[0] == 0
+    mirrored = Recording(jaw.labels, jaw.points * [1, 1, -1], jaw.rate, source="mirror.c3d")
+    with pytest.raises(InputError, match=r"mirror\.c3d: the face is a mirror image of w0's"):
+        check_same_shape([windows[0], mirrored], Limits())
+    order = np.random.default_rng(0).permutation(jaw.n_markers)
+    shuffled = Recording(jaw.labels, jaw.points[:, order], jaw.rate, source="shuffled.c3d")
+    with pytest.raises(InputError, match=r"shuffled\.c3d: the face differs from w0's by "
+                       r"\d+.* mm RMS.*checks\.max_shape_rms_mm"):
+        check_same_shape([windows[0], shuffled], Limits())
+
+
+def test_rate_outside_the_plausible_range(jaw):
+    slow = Recording(jaw.labels, jaw.points, 0.06, source="ms.csv")
+    with pytest.raises(InputError, match=r"ms\.csv: frame rate 0\.06 Hz is outside 10-2000 Hz"):
+        check_take(slow, Limits())
+    check_take(Recording(jaw.labels, jaw.points, 25.0), Limits())
+
+
+def test_held_values_are_outliers(jaw):
+    pts = jaw.points.copy()
+    j = jaw.index("Chin")
+    pts[100:103, j] = pts[100, j]   # 3 identical samples: 2 repeats, the limit: kept
+    pts[200:206, j] = pts[200, j]   # 6 identical: the 5 repeats are held
+    mask, notes = find_outliers(Recording(jaw.labels, pts, jaw.rate), Limits())
+    truth = np.zeros_like(mask)
+    truth[201:206, j] = True
+    np.testing.assert_array_equal(mask, truth)
+    assert "5 held" in notes[0]

@@ -100,7 +100,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     from facemotion.gaps import fill_gaps
     from facemotion.head_motion import align_head
     from facemotion.readers import read_recording
-    from facemotion.validation import Limits, check_take
+    from facemotion.validation import Limits, check_same_shape, check_take
 
     limits = limits or Limits()
     items = [Segment.from_param(s) for s in (sentences if sentences is not None
@@ -136,6 +136,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     for i, (rec, role) in enumerate(zip(recs, roles, strict=True)):
         recs[i], found = check_take(rec.select(used), limits, sheet_units=units, role=role)
         checks.append(found)
+    shape_rms = check_same_shape(recs, limits)
     # Head motion: one neutral head configuration (the first take's) for all takes.
     residuals = []
     if head_markers:
@@ -203,6 +204,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         "units_from": [c.units_source for c in checks],
         "units_conflict": [c.units_conflict for c in checks],
         "face_spread_mm": [c.spread_mm for c in checks],
+        "shape_rms_mm": shape_rms,
         "outlier_samples": [int(c.outliers.sum()) for c in checks],
     })
     rate = recs[0].rate

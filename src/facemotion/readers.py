@@ -353,6 +353,8 @@ def write_c3d(path, rec: Recording) -> None:
     """Write the points of ``rec`` to a C3D file (mm; residual -1 where a sample is NaN)."""
     import ezc3d
 
+    if rec.n_frames == 0:
+        raise InputError(f"{path}: a recording without frames cannot be written to C3D")
     if rec.n_frames > C3D_MAX_FRAMES:
         raise InputError(f"{path}: {rec.n_frames} frames cannot be written to C3D (ezc3d "
                          f"writes at most {C3D_MAX_FRAMES}); write TRC or CSV")
@@ -726,7 +728,11 @@ def read_csv(path, units: str | None = None) -> Recording:
         raise InputError(f"{p}: line {numbers[i + 1]}: 'time' is empty or not finite")
     dt = np.diff(t)
     step = (t[-1] - t[0]) / (t.size - 1)
-    if step <= 0 or np.max(np.abs(dt - step)) > 0.01 * step:
+    if (dt <= 0).any():
+        k = int(np.flatnonzero(dt <= 0)[0])
+        raise InputError(f"{p}: line {numbers[k + 2]}: 'time' {t[k + 1]:.6g} s does not "
+                         f"increase from {t[k]:.6g} s")
+    if np.max(np.abs(dt - step)) > 0.01 * step:
         k = int(np.argmax(np.abs(dt - step)))
         raise InputError(f"{p}: column 'time' is not uniformly sampled (step {dt[k]:.6g} s "
                          f"at line {numbers[k + 2]} vs mean step {step:.6g} s)")

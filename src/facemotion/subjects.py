@@ -94,7 +94,7 @@ def _cell(row: pd.Series, col: str):
 def read_sheet_table(path: str | Path) -> pd.DataFrame:
     """The sheet as a table of strings, read literally: no comment character (a '#' in a cell
     is part of the cell), no NA spellings (an empty cell is '')."""
-    return pd.read_csv(path, sep="\t", dtype=str, keep_default_na=False)
+    return pd.read_csv(path, sep="\t", dtype=str, keep_default_na=False, encoding="utf-8-sig")
 
 
 def _labels_cell(row: pd.Series, col: str, where: str, sid: str) -> list[str]:

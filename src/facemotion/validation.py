@@ -11,15 +11,24 @@ well-formed and still give a plausible wrong number:
   declared units are wrong (a CSV in metres read as millimetres, a TRC header saying ``m`` for
   millimetre data) and stops the run, naming the units and the spread measured
   (:func:`check_face_spread`).
-* **Length.** A take shorter than ``checks.min_take_frames`` frames is an error, training and
-  held out alike (a one-frame take has no motion: its error curve is all zeros).
+* **Length and rate.** A take shorter than ``checks.min_take_frames`` frames is an error,
+  training and held out alike (a one-frame take has no motion: its error curve is all zeros);
+  so is a frame rate outside ``checks.rate_hz`` (10-2000 Hz; a time column in milliseconds).
+* **One face.** Every take must show the first take's face (:func:`check_same_shape`): its
+  best frame must fit the first take's median marker positions by a rigid motion to within
+  ``checks.max_shape_rms_mm`` (20 mm RMS; 1-s windows of the AnimFace jaw exercise, mouth held
+  open, reach 9.7 mm, the takes of one subject 1.5 mm), and a take that fits much better with
+  a reflection has its axes swapped or mirrored.
 * **Physical plausibility** (:func:`find_outliers`). A sample farther than
   ``gaps.max_distance_mm`` from the face's centre in its frame (the median of the markers'
   positions), or reached by a jump faster than ``gaps.max_speed_mm_s`` from the marker's
   neighbouring samples, is an outlier: a corrupt value (1e30, a flipped bit), a marker swap or
-  a tracker jump. Outliers go in the gap report and the log; they are treated as gaps (removed,
-  then filled and flagged like any missing sample; ``gaps.outliers: gaps``, the default) or stop
-  the run (``gaps.outliers: error``).
+  a tracker jump. So is a sample held: the very same coordinates as in the frame before, more
+  than ``gaps.max_held_frames`` (2) frames in a row (a producer repeating the last value; no
+  sample of the shared real data repeats the one before exactly). Outliers go in the gap
+  report and the log; they are treated as gaps (removed, then filled and flagged like any
+  missing sample; ``gaps.outliers: gaps``, the default) or stop the run (``gaps.outliers:
+  error``). A take more than half outliers stops the run either way.
 
 A jump faster than the limit splits a marker's trajectory into pieces; the longest piece is
 taken as the marker and the samples of every other piece are outliers. An isolated spike is
@@ -42,6 +51,7 @@ from facemotion.recording import Recording
 log = logging.getLogger("facemotion")
 
 OUTLIER_MODES = ("gaps", "error")
+MAX_OUTLIER_FRACTION = 0.5  # a take more than half outliers would be reconstructed, not measured
 
 
 @dataclass(frozen=True)
@@ -53,6 +63,9 @@ class Limits:
     outliers: str = "gaps"
     min_take_frames: int = 10
     face_spread_mm: tuple[float, float] = (10.0, 300.0)
+    rate_hz: tuple[float, float] = (10.0, 2000.0)
+    max_shape_rms_mm: float = 20.0
+    max_held_frames: int = 2
 
     def __post_init__(self) -> None:
         if self.outliers not in OUTLIER_MODES:
@@ -68,6 +81,16 @@ class Limits:
         if not 0 < lo < hi:
             raise InputError(f"setting checks.face_spread_mm: need 0 < low < high, got "
                              f"{list(self.face_spread_mm)}")
+        lo, hi = self.rate_hz
+        if not 0 < lo < hi:
+            raise InputError(f"setting checks.rate_hz: need 0 < low < high, got "
+                             f"{list(self.rate_hz)}")
+        if int(self.max_held_frames) < 1:
+            raise InputError(f"setting gaps.max_held_frames: must be at least 1, got "
+                             f"{self.max_held_frames!r}")
+        if not (np.isfinite(self.max_shape_rms_mm) and self.max_shape_rms_mm > 0):
+            raise InputError(f"setting checks.max_shape_rms_mm: must be positive, got "
+                             f"{self.max_shape_rms_mm!r}")
         if int(self.min_take_frames) < 2:
             raise InputError(f"setting checks.min_take_frames: must be at least 2, got "
                              f"{self.min_take_frames!r}")
@@ -184,6 +207,65 @@ def check_face_spread(rec: Recording, limits: Limits,
     return spread
 
 
+def check_rate(rec: Recording, limits: Limits) -> None:
+    """A frame rate outside ``checks.rate_hz`` is an error (a CSV time column in ms gives a
+    rate 1000 times too low, a TRC DataRate typed wrong one that is off by the same)."""
+    lo, hi = limits.rate_hz
+    if not lo <= rec.rate <= hi:
+        raise InputError(f"{rec.source or 'recording'}: frame rate {rec.rate:g} Hz is outside "
+                         f"{lo:g}-{hi:g} Hz (setting checks.rate_hz): is the time column in "
+                         "seconds and the rate in Hz?")
+
+
+def _fit_rms(X: np.ndarray, Y: np.ndarray, proper: bool) -> np.ndarray:
+    """RMS residual (B,) of the best fit of X (B, m, 3) onto Y (m, 3) by rotation (or, with
+    ``proper`` False, rotation and reflection) and translation (Kabsch; Procrustes)."""
+    Xc = X - X.mean(axis=1, keepdims=True)
+    Yc = Y - Y.mean(axis=0)
+    U, S, Vt = np.linalg.svd(np.einsum("bmi,mj->bij", Xc, Yc))
+    if proper:  # no reflection: flip the smallest singular value's sign when det < 0
+        d = np.sign(np.linalg.det(U @ Vt))
+        S = S.copy()
+        S[:, 2] *= np.where(d == 0, 1.0, d)
+    ss = np.sum(Xc ** 2, axis=(1, 2)) + np.sum(Yc ** 2) - 2 * S.sum(axis=1)
+    return np.sqrt(np.maximum(ss, 0.0) / X.shape[1])
+
+
+def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 200
+                     ) -> list[float]:
+    """Each take's face against the first take's (the median position of its markers).
+
+    For up to ``max_frames`` frames of a take, the face is fitted onto the reference by a
+    rigid motion; the best frame's RMS residual must be within ``checks.max_shape_rms_mm``.
+    A take that fits much better with a reflection than without has its axes swapped or
+    mirrored (an error whatever the limit). Returns the RMS of each take (0 for the first).
+    """
+    ref = np.nanmedian(np.where(np.isfinite(recs[0].points), recs[0].points, np.nan), axis=0)
+    out = [0.0]
+    for rec in recs[1:]:
+        where = rec.source or "recording"
+        cols = np.isfinite(ref).all(axis=1)
+        frames = np.flatnonzero(np.isfinite(rec.points[:, cols]).all(axis=(1, 2)))
+        if cols.sum() < 3 or frames.size == 0:
+            out.append(float("nan"))
+            continue
+        frames = frames[np.linspace(0, frames.size - 1, min(frames.size, max_frames)).astype(int)]
+        X = rec.points[frames][:, cols]
+        proper = float(np.min(_fit_rms(X, ref[cols], True)))
+        mirror = float(np.min(_fit_rms(X, ref[cols], False)))
+        if mirror < 0.5 * proper:
+            raise InputError(f"{where}: the face is a mirror image of {recs[0].source}'s "
+                             f"(it fits it to {mirror:.3g} mm RMS with a reflection, "
+                             f"{proper:.3g} mm without): two axes swapped or one negated?")
+        if proper > limits.max_shape_rms_mm:
+            raise InputError(
+                f"{where}: the face differs from {recs[0].source}'s by {proper:.3g} mm RMS at "
+                f"best after a rigid fit (limit {limits.max_shape_rms_mm:g} mm, setting "
+                "checks.max_shape_rms_mm): markers relabelled, or another face?")
+        out.append(proper)
+    return out
+
+
 def check_take_length(rec: Recording, limits: Limits, role: str = "") -> None:
     if rec.n_frames < limits.min_take_frames:
         raise InputError(f"{rec.source or 'recording'}: {role + ' ' if role else ''}take has "
@@ -272,6 +354,17 @@ def find_outliers(rec: Recording, limits: Limits,
                         / np.diff(idx)
                 top_speed[j] = float(np.nanmax(v))
     out |= fast
+    # held: the very same coordinates as the frame before, more than max_held_frames in a row
+    # (a producer holding the last value; no measured marker repeats itself exactly)
+    same = np.zeros((F, n), dtype=bool)
+    same[1:] = (pts[1:] == pts[:-1]).all(axis=2) & ok[1:] & ok[:-1]
+    held = np.zeros((F, n), dtype=bool)
+    for j in np.flatnonzero(same.any(axis=0)):
+        for a, b in runs(same[:, j]):
+            if b - a > limits.max_held_frames:
+                held[a:b, j] = True
+    held &= ~out
+    out |= held
     notes = []
     for j in np.flatnonzero(out.any(axis=0)):
         first = int(np.flatnonzero(out[:, j])[0])
@@ -282,6 +375,10 @@ def find_outliers(rec: Recording, limits: Limits,
         if fast[:, j].any():
             why.append(f"{int(fast[:, j].sum())} reached at up to {top_speed[j]:.3g} mm/s "
                        f"(limit {limits.max_speed_mm_s:g} mm/s, gaps.max_speed_mm_s)")
+        if held[:, j].any():
+            why.append(f"{int(held[:, j].sum())} held (the same coordinates as the frame "
+                       f"before, more than {limits.max_held_frames} frame(s) in a row; "
+                       "gaps.max_held_frames)")
         notes.append(f"marker {rec.labels[j]!r}: {int(out[:, j].sum())} outlier sample(s) in "
                      f"{len(runs(out[:, j]))} run(s), first at frame {first + 1} "
                      f"(t = {first / rec.rate:.3f} s): {'; '.join(why)}")
@@ -298,9 +395,14 @@ def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,
         log.warning("%s: the file declares %s, the subject sheet %s: the file's units are "
                     "used", where, rec.units, sheet_units)
     check_take_length(rec, limits, role)
+    check_rate(rec, limits)
     distances = centre_distances(rec)  # once, for the units and the outliers
     spread = check_face_spread(rec, limits, distances)
     mask, notes = find_outliers(rec, limits, distances)
+    measured = np.isfinite(rec.points).all(axis=2).sum()
+    if measured and mask.sum() > MAX_OUTLIER_FRACTION * measured:
+        raise InputError(f"{where}: {mask.sum()} of the take's {measured} measured samples are "
+                         f"outliers (more than {MAX_OUTLIER_FRACTION:.0%}; first: {notes[0]})")
     if notes:
         if limits.outliers == "error":
             raise InputError(f"{where}: {notes[0]} (gaps.outliers is 'error')")
