@@ -15,7 +15,6 @@ def main(sm, log, prov):
     gaps, checks = sm.params.gaps, sm.params.checks
     limits = Limits(max_distance_mm=gaps["max_distance_mm"],
                     max_speed_mm_s=gaps["max_speed_mm_s"], outliers=gaps["outliers"],
-                    max_held_frames=gaps["max_held_frames"],
                     min_take_frames=checks["min_take_frames"],
                     face_spread_mm=tuple(checks["face_spread_mm"]),
                     rate_hz=tuple(checks["rate_hz"]),

@@ -23,12 +23,11 @@ well-formed and still give a plausible wrong number:
   ``gaps.max_distance_mm`` from the face's centre in its frame (the median of the markers'
   positions), or reached by a jump faster than ``gaps.max_speed_mm_s`` from the marker's
   neighbouring samples, is an outlier: a corrupt value (1e30, a flipped bit), a marker swap or
-  a tracker jump. So is a sample held: the very same coordinates as in the frame before, more
-  than ``gaps.max_held_frames`` (2) frames in a row (a producer repeating the last value; no
-  sample of the shared real data repeats the one before exactly). Outliers go in the gap
-  report and the log; they are treated as gaps (removed, then filled and flagged like any
-  missing sample; ``gaps.outliers: gaps``, the default) or stop the run (``gaps.outliers:
-  error``). A take more than half outliers stops the run either way.
+  a tracker jump. Outliers go in the gap report and the log; they are treated as gaps
+  (removed, then filled and flagged like any missing sample; ``gaps.outliers: gaps``, the
+  default) or stop the run (``gaps.outliers: error``). A take more than half outliers stops
+  the run either way, and so does a take in which no marker moves at all (a frozen or
+  placeholder take: its error curve would be zeros).
 
 A jump faster than the limit splits a marker's trajectory into pieces; the longest piece is
 taken as the marker and the samples of every other piece are outliers. An isolated spike is
@@ -65,7 +64,6 @@ class Limits:
     face_spread_mm: tuple[float, float] = (10.0, 300.0)
     rate_hz: tuple[float, float] = (10.0, 2000.0)
     max_shape_rms_mm: float = 20.0
-    max_held_frames: int = 2
 
     def __post_init__(self) -> None:
         if self.outliers not in OUTLIER_MODES:
@@ -85,9 +83,6 @@ class Limits:
         if not 0 < lo < hi:
             raise InputError(f"setting checks.rate_hz: need 0 < low < high, got "
                              f"{list(self.rate_hz)}")
-        if int(self.max_held_frames) < 1:
-            raise InputError(f"setting gaps.max_held_frames: must be at least 1, got "
-                             f"{self.max_held_frames!r}")
         if not (np.isfinite(self.max_shape_rms_mm) and self.max_shape_rms_mm > 0):
             raise InputError(f"setting checks.max_shape_rms_mm: must be positive, got "
                              f"{self.max_shape_rms_mm!r}")
@@ -266,6 +261,19 @@ def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 20
     return out
 
 
+def check_moves(rec: Recording) -> None:
+    """InputError if no marker of the take ever leaves its first measured position."""
+    pts = rec.points
+    ok = np.isfinite(pts).all(axis=2)
+    first = np.argmax(ok, axis=0)  # each marker's first measured frame
+    ref = pts[first, np.arange(rec.n_markers)]
+    with np.errstate(invalid="ignore"):
+        moved = np.any(ok & (pts != ref[None]).any(axis=2))
+    if ok.any() and not moved:
+        raise InputError(f"{rec.source or 'recording'}: no marker moves in this take (every "
+                         "sample equals the marker's first): a frozen or placeholder take")
+
+
 def check_take_length(rec: Recording, limits: Limits, role: str = "") -> None:
     if rec.n_frames < limits.min_take_frames:
         raise InputError(f"{rec.source or 'recording'}: {role + ' ' if role else ''}take has "
@@ -354,17 +362,6 @@ def find_outliers(rec: Recording, limits: Limits,
                         / np.diff(idx)
                 top_speed[j] = float(np.nanmax(v))
     out |= fast
-    # held: the very same coordinates as the frame before, more than max_held_frames in a row
-    # (a producer holding the last value; no measured marker repeats itself exactly)
-    same = np.zeros((F, n), dtype=bool)
-    same[1:] = (pts[1:] == pts[:-1]).all(axis=2) & ok[1:] & ok[:-1]
-    held = np.zeros((F, n), dtype=bool)
-    for j in np.flatnonzero(same.any(axis=0)):
-        for a, b in runs(same[:, j]):
-            if b - a > limits.max_held_frames:
-                held[a:b, j] = True
-    held &= ~out
-    out |= held
     notes = []
     for j in np.flatnonzero(out.any(axis=0)):
         first = int(np.flatnonzero(out[:, j])[0])
@@ -375,10 +372,6 @@ def find_outliers(rec: Recording, limits: Limits,
         if fast[:, j].any():
             why.append(f"{int(fast[:, j].sum())} reached at up to {top_speed[j]:.3g} mm/s "
                        f"(limit {limits.max_speed_mm_s:g} mm/s, gaps.max_speed_mm_s)")
-        if held[:, j].any():
-            why.append(f"{int(held[:, j].sum())} held (the same coordinates as the frame "
-                       f"before, more than {limits.max_held_frames} frame(s) in a row; "
-                       "gaps.max_held_frames)")
         notes.append(f"marker {rec.labels[j]!r}: {int(out[:, j].sum())} outlier sample(s) in "
                      f"{len(runs(out[:, j]))} run(s), first at frame {first + 1} "
                      f"(t = {first / rec.rate:.3f} s): {'; '.join(why)}")
@@ -399,6 +392,7 @@ def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,
     distances = centre_distances(rec)  # once, for the units and the outliers
     spread = check_face_spread(rec, limits, distances)
     mask, notes = find_outliers(rec, limits, distances)
+    check_moves(rec)
     measured = np.isfinite(rec.points).all(axis=2).sum()
     if measured and mask.sum() > MAX_OUTLIER_FRACTION * measured:
         raise InputError(f"{where}: {mask.sum()} of the take's {measured} measured samples are "
