@@ -75,6 +75,12 @@ class _Names(list):
     def items(self):
         return self._named.items()
 
+    def keys(self):
+        return self._named.keys()
+
+    def __getitem__(self, key):
+        return self._named[key] if isinstance(key, str) else super().__getitem__(key)
+
 
 @dataclass
 class Outcome:
@@ -804,9 +810,9 @@ def tiny_study(tiny_data, tmp_path_factory):
     (work / "sheet.tsv").write_text(SHEET_HEAD + sheet_row("A", "a/*.c3d"))
     anim = work / "results" / "A" / "anim"
     anim.mkdir(parents=True)
-    planted = [anim / ".heldout.gif.k2j3.tmp.gif", anim / ".heldout.x7q1.gif"]
+    planted = [anim / ".heldout.mp4.k2j3.tmp.mp4", anim / ".heldout.x7q1.mp4"]
     for p in planted:
-        p.write_bytes(b"GIF89a half-written")
+        p.write_bytes(b"half-written")
     study = snake(work)
     return {"work": work, "efbig": efbig, "left_after_efbig": left_after_efbig,
             "efbig_log": efbig_log,
@@ -851,7 +857,7 @@ def test_manifest_lists_only_the_current_workflow(tiny_study):
     paths = set(manifest["path"])
     assert not [p for p in paths if p.startswith("results/B/")]
     for p in ("results/A/data/displacements.npz", "results/A/qr/r_values.tsv",
-              "results/A/eval/error_curve.tsv", "results/A/anim/heldout.gif",
+              "results/A/eval/error_curve.tsv", "results/A/anim/heldout.mp4",
               "results/tables/selected_markers.tsv"):
         assert p in paths, p
     on_disk = {str(p.relative_to(work)) for p in (work / "results" / "A").rglob("*")
