@@ -140,3 +140,33 @@ def test_rank_prints_the_workflows_first_pivots_on_animface(tmp_path):
         assert table["marker"].tolist() == workflow["marker"].tolist()
         np.testing.assert_allclose(table["r"].astype(float), workflow["r"], rtol=1e-5)
         assert not set(HEAD) & set(table["marker"])
+
+
+def test_rank_says_what_the_loading_filled_and_names_a_repeated_head_marker(tmp_path):
+    """A non-finite sample is a missing sample: filled, and said on stderr with its marker
+    (the ranking equals the clean take's, as the one sample is interpolated); a head marker
+    given twice is blamed on the option, not on the file."""
+    import ezc3d
+    from test_real_data import shared_data
+
+    jaw = shared_data() / "animface" / "animface_jaw.c3d"
+    c = ezc3d.c3d(str(jaw))
+    labels = list(c["parameters"]["POINT"]["LABELS"]["value"])
+    pts = c["data"]["points"]
+    pts[0, labels.index("Chin"), 100] = np.inf
+    c["data"]["points"] = pts
+    del c["data"]["meta_points"]
+    bad = tmp_path / "jaw_inf.c3d"
+    c.write(str(bad))
+    head = ",".join(HEAD)
+    clean = run("rank", jaw, "--head", head, "--exclude", head)
+    res = run("rank", bad, "--head", head, "--exclude", head)
+    assert clean.returncode == 0 and res.returncode == 0, res.stderr
+    assert "missing sample" not in clean.stderr
+    assert res.stderr.startswith("facemotion: 1 missing sample(s) filled: Chin (1)")
+    assert parse_rank(res.stdout)[0] == parse_rank(clean.stdout)[0]
+    res = run("rank", jaw, "--head", "ForeHead_M,ForeHead_M,NoseTop")
+    assert res.returncode == 1 and res.stderr.count("\n") == 1
+    assert "head_markers: marker(s) ForeHead_M listed twice" in res.stderr
+    res = run("rank", jaw, "--head", "ForeHead_M,Nope,NoseTop")
+    assert res.returncode == 1 and "marker 'Nope' (named in head_markers) is not in" in res.stderr

@@ -1,6 +1,7 @@
 """Parse-time checks of the settings against the data's counts: refused, never clamped."""
 
 import copy
+import re
 from pathlib import Path
 
 import pytest
@@ -118,3 +119,16 @@ def test_k_max_within_the_data_passes(config):
     check_settings(cfg, COUNTS)
     with pytest.raises(InputError, match=r"setting qr\.k_max"):
         validate_config({**cfg, "qr": {**cfg["qr"], "k_max": 0}}, SCHEMA)
+
+
+def test_nan_and_infinity_in_any_setting_are_errors(tmp_path):
+    """NaN passes every schema minimum and maximum (the comparisons are false), so it is
+    refused before the schema: a NaN tolerance would otherwise give an epsilon-rank."""
+    from facemotion.settings import validate_config
+
+    schema = Path(__file__).resolve().parents[1] / "workflow" / "schemas" / "config.schema.yaml"
+    for config, where in (({"qr": {"tolerances_mm": [0.5, float("nan")]}}, "qr.tolerances_mm.1"),
+                          ({"heldout_fraction": float("inf")}, "heldout_fraction")):
+        with pytest.raises(InputError, match=rf"^setting {re.escape(where)}: (nan|inf) is not a "
+                                             "finite number$"):
+            validate_config(config, schema)

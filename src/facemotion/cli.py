@@ -158,6 +158,7 @@ def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, me
                if v is not None}
     data = fm.load(list(files), fmt=fmt, head_markers=head, exclude_markers=exclude,
                    include_markers=include, **options)
+    _echo_filled(data.gap_report)
     train = data.train
     ranking = fm.rank_markers(train, method=method)
     rows, n = train.A.shape
@@ -171,6 +172,28 @@ def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, me
                             normalisation=r_normalisation)
     # the redundant markers are the pivots after the epsilon-rank, in the order printed above
     click.echo(table.drop(columns=["redundant_markers"], errors="ignore").to_string(index=False))
+
+
+def _echo_filled(report) -> None:
+    """One line on stderr for the samples the loading filled: missing samples (gaps, invalid or
+    non-finite values) and outliers, by marker, so a quick answer never hides them."""
+    missing = report[report["missing_frames"] > 0]
+    outliers = report[report["outlier_frames"] > 0]
+    if missing.empty and outliers.empty:
+        return
+    def by_marker(rows, column):
+        top = rows.sort_values(column, ascending=False, kind="stable")
+        names = [f"{m} ({int(v)})" for m, v in zip(top["marker"], top[column], strict=True)]
+        return ", ".join(names[:8]) + (f" and {len(names) - 8} more" if len(names) > 8 else "")
+    parts = []
+    if not missing.empty:
+        parts.append(f"{int(missing['missing_frames'].sum())} missing sample(s) filled: "
+                     + by_marker(missing, "missing_frames"))
+    if not outliers.empty:
+        parts.append(f"{int(outliers['outlier_frames'].sum())} outlier sample(s) treated as "
+                     "gaps: " + by_marker(outliers, "outlier_frames"))
+    click.echo("facemotion: " + "; ".join(parts) + " (marker (frames); "
+               "`facemotion info FILE` lists the gaps of each marker)", err=True)
 
 
 def _workflow_snakefile() -> Path:

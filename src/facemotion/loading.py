@@ -124,10 +124,15 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     for rec in recs[1:]:
         check_same_take_layout(rec, recs[0])
     labels = recs[0].labels
-    for m in list(exclude_markers) + list(include_markers) + list(head_markers):
-        if m not in labels:
-            raise InputError(f"{paths[0]}: marker {m!r} (named in the subject sheet) is not in "
-                             "the data")
+    for setting, names in (("head_markers", head_markers), ("exclude_markers", exclude_markers),
+                           ("include_markers", include_markers)):
+        twice = sorted({m for m in names if list(names).count(m) > 1})
+        if twice:
+            raise InputError(f"{setting}: marker(s) {', '.join(twice)} listed twice")
+        for m in names:
+            if m not in labels:
+                raise InputError(f"{paths[0]}: marker {m!r} (named in {setting}) is not in "
+                                 "the data")
     keep = [m for m in (include_markers or labels) if m not in set(exclude_markers)]
     if len(keep) < 2:
         raise InputError(f"{paths[0]}: fewer than 2 markers left after include/exclude")

@@ -627,7 +627,8 @@ def epsilon_rank(ranking: MarkerRanking, tolerances_mm,
         raise InputError(f"tolerances_mm: not a list of numbers ({exc})") from None
     bad = tols[~(np.isfinite(tols) & (tols > 0))]
     if bad.size:
-        raise InputError(f"tolerances_mm: tolerances must be positive finite mm, got {bad[0]!r}")
+        raise InputError(f"tolerances_mm: tolerances must be positive finite mm, got "
+                         f"{float(bad[0])}")
     r = ranking.normalised_r(normalisation)
     out = []
     stops = bool(np.isnan(ranking.r).any())  # the randomized route: first k_max pivots only

@@ -15,6 +15,7 @@ message is the first thing the user sees.
 from __future__ import annotations
 
 import contextlib
+import math
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -143,11 +144,25 @@ def _best_error(data, schema_path):
         jsonschema.Draft202012Validator(schema).iter_errors(data))
 
 
+def _refuse_non_finite(value, where: str = "") -> None:
+    """NaN and infinity in any setting are errors: NaN passes every minimum and maximum of
+    the schema (each comparison is false), so a NaN tolerance would give an epsilon-rank."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise InputError(f"setting {where or '(top level)'}: {value} is not a finite number")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _refuse_non_finite(v, f"{where}.{k}" if where else str(k))
+    elif isinstance(value, list | tuple):
+        for i, v in enumerate(value):
+            _refuse_non_finite(v, f"{where}.{i}")
+
+
 def validate_config(config: dict, schema_path) -> None:
     """Snakemake's schema validation (which also fills in the defaults), with a failure as an
     InputError of one line naming the setting."""
     from snakemake.utils import validate
 
+    _refuse_non_finite(config)
     try:
         validate(config, str(schema_path))
     except Exception as exc:  # snakemake's WorkflowError, several lines long
