@@ -84,7 +84,8 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                  neutral: str = "first_frame", limits: Limits | None = None,
                  sentences: list | None = None,
                  subject_prefix: str | None = None,
-                 copy_markers: list[tuple[str, str]] = ()) -> LoadedDataset:
+                 copy_markers: list[tuple[str, str]] = (),
+                 markers_named_in: str = "the subject sheet") -> LoadedDataset:
     """Load the sentences ``train + heldout`` (0-based indices into the sentences).
 
     The sentences are ``recordings`` (one file each) or, when given, ``sentences``: intervals
@@ -96,6 +97,8 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     ``copy_markers``: (target, source) pairs; the target's missing samples are filled by
     copying the source's displacement in head coordinates (``facemotion.copy_fill``) before
     the other gaps are filled.
+    ``markers_named_in`` says in errors where the marker lists came from (the subject sheet, or
+    the arguments of :func:`load`).
     """
     from facemotion.gaps import fill_gaps
     from facemotion.head_motion import align_head
@@ -128,11 +131,12 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                            ("include_markers", include_markers)):
         twice = sorted({m for m in names if list(names).count(m) > 1})
         if twice:
-            raise InputError(f"{setting}: marker(s) {', '.join(twice)} listed twice")
+            raise InputError(f"{setting} ({markers_named_in}): marker(s) {', '.join(twice)} "
+                             "listed twice")
         for m in names:
             if m not in labels:
-                raise InputError(f"{paths[0]}: marker {m!r} (named in {setting}) is not in "
-                                 "the data")
+                raise InputError(f"{paths[0]}: marker {m!r} (named in {setting} of "
+                                 f"{markers_named_in}) is not in the data")
     keep = [m for m in (include_markers or labels) if m not in set(exclude_markers)]
     if len(keep) < 2:
         raise InputError(f"{paths[0]}: fewer than 2 markers left after include/exclude")
@@ -275,4 +279,4 @@ def load(paths, *, heldout=(), fmt: str | None = None, head_markers=(), exclude_
     return load_dataset(paths, fmt or infer_format(paths[0]), head_markers=list(head_markers),
                         exclude_markers=list(exclude_markers),
                         include_markers=list(include_markers), train=train, heldout=held,
-                        **options)
+                        markers_named_in="the arguments", **options)
