@@ -801,14 +801,14 @@ def tiny_study(tiny_data, tmp_path_factory):
         (work / name).symlink_to(tiny_data / name)
     (work / "sheet.tsv").write_text(SHEET_HEAD + sheet_row("A", "a/*.c3d")
                                     + sheet_row("B", "b/*.c3d"))
-    target_b = "results/B/data/gap_report.tsv"
+    target_b = "results/tiny/B/data/gap_report.tsv"
     efbig = snake(work, target_b, fsize=48 * 1024)
     left_after_efbig = sorted(str(p.relative_to(work)) for p in (work / "results").rglob("*")
                               if p.is_file() and "logs" not in p.parts)
-    efbig_log = (work / "results" / "logs" / "load_dataset" / "B.log").read_text()
+    efbig_log = (work / "results" / "tiny" / "logs" / "load_dataset" / "B.log").read_text()
     b_run = snake(work, target_b)
     (work / "sheet.tsv").write_text(SHEET_HEAD + sheet_row("A", "a/*.c3d"))
-    anim = work / "results" / "A" / "anim"
+    anim = work / "results" / "tiny" / "A" / "anim"
     anim.mkdir(parents=True)
     planted = [anim / ".heldout.mp4.k2j3.tmp.mp4", anim / ".heldout.x7q1.mp4"]
     for p in planted:
@@ -852,22 +852,23 @@ def test_temporary_files_of_a_job_are_cleaned_when_it_runs_again(tiny_study):
 
 def test_manifest_lists_only_the_current_workflow(tiny_study):
     work = tiny_study["work"]
-    assert (work / "results" / "B" / "data" / "gap_report.tsv").is_file()  # stale, on disk
-    manifest = pd.read_csv(work / "results" / "manifest.tsv", sep="\t")
+    # stale, on disk
+    assert (work / "results" / "tiny" / "B" / "data" / "gap_report.tsv").is_file()
+    manifest = pd.read_csv(work / "results" / "tiny" / "manifest.tsv", sep="\t")
     paths = set(manifest["path"])
-    assert not [p for p in paths if p.startswith("results/B/")]
-    for p in ("results/A/data/displacements.npz", "results/A/qr/r_values.tsv",
-              "results/A/eval/error_curve.tsv", "results/A/anim/heldout.mp4",
-              "results/tables/selected_markers.tsv"):
+    assert not [p for p in paths if p.startswith("results/tiny/B/")]
+    for p in ("results/tiny/A/data/displacements.npz", "results/tiny/A/qr/r_values.tsv",
+              "results/tiny/A/eval/error_curve.tsv", "results/tiny/A/anim/heldout.mp4",
+              "results/tiny/tables/selected_markers.tsv"):
         assert p in paths, p
-    on_disk = {str(p.relative_to(work)) for p in (work / "results" / "A").rglob("*")
+    on_disk = {str(p.relative_to(work)) for p in (work / "results" / "tiny" / "A").rglob("*")
                if p.is_file() and not p.name.endswith(".meta.json")}
     assert on_disk <= paths, on_disk - paths
 
 
 def test_corrupt_sidecar_is_one_line_naming_it(tiny_study):
     work = tiny_study["work"]
-    side = work / "results" / "A" / "qr" / "r_values.meta.json"
+    side = work / "results" / "tiny" / "A" / "qr" / "r_values.meta.json"
     good = side.read_bytes()
     side.write_text('{"schema_id": "facemotion/r_values", "outputs": [')
     try:
@@ -879,7 +880,7 @@ def test_corrupt_sidecar_is_one_line_naming_it(tiny_study):
     assert len(ours) == 1 and re.search(r"write_manifest: .*r_values\.meta\.json: not a valid "
                                         r"sidecar", ours[0]), proc.stderr[-3000:]
     assert "Traceback" not in proc.stderr
-    assert not (work / "results" / "manifest.tsv").exists()
+    assert not (work / "results" / "tiny" / "manifest.tsv").exists()
 
 
 def test_heldout_fraction_zero_means_no_evaluation(tiny_data, tmp_path):
