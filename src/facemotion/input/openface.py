@@ -117,7 +117,8 @@ def write_openface_csv(path, rec: Recording) -> None:
     ``Z_i`` (mm) with landmark i = ``rec.labels[i]`` (read back as ``L{i}``). OpenFace reports
     every landmark of a frame or none, so a take with a missing sample is refused (one line
     naming the marker and frame) instead of being written in a way OpenFace never writes."""
-    from facemotion.readers import _atomic_path, _fmt
+    from facemotion.provenance import atomic_path
+    from facemotion.readers import _fmt
 
     missing = ~np.isfinite(rec.points).all(axis=2)
     if missing.any():
@@ -133,5 +134,5 @@ def write_openface_csv(path, rec: Recording) -> None:
     for f in range(rec.n_frames):
         out.append(f"{f + 1}, 0, {f / rec.rate:.6f}, 1, 1, "
                    + ", ".join(_fmt(x) for x in flat[f]))
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         tmp.write_text("\n".join(out) + "\n", encoding="utf-8")
