@@ -327,14 +327,6 @@ def test_smoke_size_generic_design_and_recordings(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["truth.npz"]
 
 
-def test_speed_of_a_full_session():
-    import time
-
-    t0 = time.process_time()                       # CPU time: robust to a busy machine
-    simulate_subject("S2a", seed=0)
-    assert time.process_time() - t0 < 8.0          # ~2 s
-
-
 def test_bad_settings_name_the_setting():
     with pytest.raises(InputError, match="design 'S9' unknown"):
         simulate_subject("S9")
