@@ -99,6 +99,22 @@ def test_report_hint_keeps_the_options_that_name_the_study():
         "--report results/x/report.html")
 
 
+def test_report_hint_names_the_snakemake_that_ran(tmp_path, monkeypatch):
+    """`make study` runs .venv/bin/snakemake, which is not on the PATH: the hint gives its
+    path relative to where the user is; a snakemake found on the PATH is just `snakemake`."""
+    exe = tmp_path / ".venv" / "bin" / "snakemake"
+    exe.parent.mkdir(parents=True)
+    exe.write_text("#!/bin/sh\n")
+    exe.chmod(0o755)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("PATH", "/nonexistent")
+    assert same_study_command([str(exe), "--cores", "2"], "--report", "r.html") == (
+        ".venv/bin/snakemake --report r.html")
+    monkeypatch.setenv("PATH", str(exe.parent))
+    assert same_study_command([str(exe)], "--report", "r.html") == "snakemake --report r.html"
+    assert same_study_command(["/x/__main__.py"], "-n") == "snakemake -n"
+
+
 # ---- through snakemake (parse only) ----
 
 def _snakemake(*args, cwd, env=None):

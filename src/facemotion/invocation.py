@@ -131,13 +131,31 @@ _STUDY_OPTIONS = ("-s", "--snakefile", "-d", "--directory", "--configfile", "--c
                   "--config", "-C", "--profile", "--workflow-profile")
 
 
+def _snakemake_executable(argv0: str) -> str:
+    """How to call the snakemake that runs now: ``snakemake`` when that name finds it on the
+    PATH, else its path (relative to the current directory when inside it, e.g.
+    ``.venv/bin/snakemake`` after ``make study``)."""
+    import shutil
+
+    exe = Path(argv0)
+    if exe.name != "snakemake" or not exe.is_file():
+        return "snakemake"   # python -m snakemake, or an unknown launcher
+    found = shutil.which("snakemake")
+    if found and Path(found).resolve() == exe.resolve():
+        return "snakemake"
+    try:
+        return str(exe.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(exe.resolve())
+
+
 def same_study_command(argv: list[str], *extra: str) -> str:
     """The command line that addresses the same study as ``argv`` (Snakefile, directory,
     config files, --config values, profile), followed by ``extra``; for the closing summary's
     report hint."""
     import shlex
 
-    keep = ["snakemake"]
+    keep = [_snakemake_executable(argv[0] if argv else "")]
     args = list(argv[1:])
     i = 0
     while i < len(args):
