@@ -29,7 +29,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from rule_times import read_benchmarks, read_job_cpu, replace_between_markers, table  # noqa: E402
+from rule_times import read_benchmarks, read_job_cpu, table, update_readme  # noqa: E402
 
 
 def study_root(workdir: Path) -> Path:
@@ -90,8 +90,7 @@ def main() -> int:
         f"\t{jobs}\t{args.target_s:.0f}\t{verdict}\n")
     (out / "rule_times.md").write_text(text + "\n")
     if args.readme:
-        p = Path(args.readme)
-        p.write_text(replace_between_markers(p.read_text(), text))
+        update_readme(args.readme, text)
     return 0
 
 

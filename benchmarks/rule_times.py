@@ -81,6 +81,12 @@ def replace_between_markers(text: str, new: str) -> str:
     return f"{head}{START}\n{new}\n{END}{tail}"
 
 
+def update_readme(path, new: str) -> None:
+    """Replace the table between the markers of the file at ``path`` with ``new``."""
+    p = Path(path)
+    p.write_text(replace_between_markers(p.read_text(), new))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", nargs="?", default="results/paper",
@@ -94,8 +100,7 @@ def main(argv=None) -> int:
     text = table(rules, read_job_cpu(Path(args.root)))
     print(text)
     if args.readme:
-        p = Path(args.readme)
-        p.write_text(replace_between_markers(p.read_text(), text))
+        update_readme(args.readme, text)
     return 0
 
 
