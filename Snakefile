@@ -19,6 +19,11 @@ include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/compare.smk"
 
 
+# Scheduling on few cores (rules' priority:): the virtual subjects and their loading first (every
+# analysis waits for them), then the longest analysis jobs (animation, region maps, held-out
+# evaluation, sentence sweep), so that the short ones and the lip model fill the other core
+# instead of leaving a long job to run alone at the end.
+
 # Small aggregation rules (tables and figures across datasets, the summary, the manifest) run
 # on the machine Snakemake runs on, never as cluster jobs of their own.
 localrules:

@@ -45,6 +45,7 @@ rule animate_heldout:
         "<results>/logs/animate_heldout.log",
     benchmark:
         "<results>/benchmarks/animate_heldout/all.tsv"
+    priority: 30
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -23,6 +23,7 @@ rule load_dataset:
         "<results>/logs/load_dataset/{dataset}.log",
     benchmark:
         "<results>/benchmarks/load_dataset/{dataset}.tsv"
+    priority: 40
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -51,6 +51,7 @@ rule evaluate_heldout:
         "<results>/logs/evaluate_heldout.log",
     benchmark:
         "<results>/benchmarks/evaluate_heldout/all.tsv"
+    priority: 20
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -47,6 +47,7 @@ rule fit_regions:
         "<results>/benchmarks/fit_regions/k{k}.tsv"
     wildcard_constraints:
         k=r"\d+",
+    priority: 25
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -36,6 +36,7 @@ rule rank_markers:
         "<results>/logs/rank_markers.log",
     benchmark:
         "<results>/benchmarks/rank_markers/all.tsv"
+    priority: 12
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -128,6 +129,7 @@ rule sweep_sentences:
         "<results>/logs/sweep_sentences.log",
     benchmark:
         "<results>/benchmarks/sweep_sentences/all.tsv"
+    priority: 15
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -161,6 +163,7 @@ rule compare_subsets:
         "<results>/logs/compare_subsets.log",
     benchmark:
         "<results>/benchmarks/compare_subsets/all.tsv"
+    priority: 10
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -8,6 +8,7 @@ rule simulate_subject:
         "<results>/logs/simulate_subject/{subject}.log",
     benchmark:
         "<results>/benchmarks/simulate_subject/{subject}.tsv"
+    priority: 50
     conda:
         "../envs/facemotion.yaml"
     threads: 1
