@@ -24,12 +24,11 @@ include: "workflow/rules/compare.smk"
 # evaluation, sentence sweep), so that the short ones and the lip model fill the other core
 # instead of leaving a long job to run alone at the end.
 
+
 # Small aggregation rules (tables and figures across datasets, the summary, the manifest) run
 # on the machine Snakemake runs on, never as cluster jobs of their own.
 localrules:
     all,
-    tabulate_selection,
-    plot_error_curves,
     summarise_sweep,
     summarise_talkers,
     compare_with_papers,

@@ -1,4 +1,5 @@
-"""Held-out error against k (paper Fig. 10) and a measured-vs-model trajectory (Fig. 9)."""
+"""Held-out error against k (paper Fig. 10) and a measured-vs-model trajectory (Fig. 9); then
+the error curves of all datasets overlaid."""
 
 import numpy as np
 import pandas as pd
@@ -9,7 +10,7 @@ from facemotion.pivoted_qr import rank_for_study
 from facemotion.plots.errors import plot_error_curves, plot_trajectory
 from facemotion.prediction import error_curve, predict
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_per_dataset
+from facemotion.snakemake_adapter import across_provenance, figure_paths, run_per_dataset
 
 
 def main(sm, log, prov):
@@ -68,4 +69,13 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "traj_png"), "trajectory", prov)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+def across(sm, log):
+    """Held-out error curves of all datasets overlaid (paper Fig. 10)."""
+    prov = across_provenance(sm, sm.output.curve)
+    curves = {sm.params.per_dataset[d]["label"]: pd.read_csv(p, sep="\t")
+              for d, p in zip(sm.params.datasets, sm.output.curve, strict=True)}
+    fig = plot_error_curves(curves)
+    save_figure(fig, figure_paths(sm.output, "across_png"), "error_curves_all", prov)
+
+
+run_per_dataset(snakemake, main, across)  # noqa: F821

@@ -1,12 +1,16 @@
-"""Rank markers by QR with column pivoting; epsilon-rank (paper Fig. 2)."""
+"""Rank markers by QR with column pivoting; epsilon-rank (paper Fig. 2); then the selected
+markers of all datasets together (Table I) and Fig. 2 overlaid."""
 
 import numpy as np
+import pandas as pd
 
 from facemotion.displacements import load_displacements, split_roles
 from facemotion.pivoted_qr import epsilon_rank, rank_for_study, ranking_summary, route_accuracy
 from facemotion.plots.rank import plot_r_values
+from facemotion.plots.selection import plot_selection_agreement
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_per_dataset
+from facemotion.selector import selection_table
+from facemotion.snakemake_adapter import across_provenance, figure_paths, run_per_dataset
 
 
 def main(sm, log, prov):
@@ -35,4 +39,25 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "png"), "r_values", prov)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+def across(sm, log):
+    """Selected markers across datasets (paper Table I), epsilon-ranks, Fig. 2 overlaid."""
+    labels = [sm.params.per_dataset[d]["label"] for d in sm.params.datasets]
+    prov = across_provenance(sm, [*sm.output.r_values, *sm.output.rank])
+    r_tables = {lab: pd.read_csv(p, sep="\t", dtype={"marker": str})
+                for lab, p in zip(labels, sm.output.r_values, strict=True)}
+    n = sm.params.across_orders
+    table = selection_table({lab: t["marker"] for lab, t in r_tables.items()}, n)
+    write_table(table, sm.output.across_table, "selected_markers", prov)
+    fig = plot_selection_agreement(table, k=min(10, n))
+    save_figure(fig, figure_paths(sm.output, "across_sel_png"), "selected_markers", prov)
+    ranks = []
+    for lab, p in zip(labels, sm.output.rank, strict=True):
+        r = pd.read_csv(p, sep="\t", dtype={"redundant_markers": str}, keep_default_na=False)
+        r.insert(0, "dataset", lab)
+        ranks.append(r)
+    write_table(pd.concat(ranks, ignore_index=True), sm.output.across_summary, "summary", prov)
+    fig = plot_r_values(r_tables, tolerances=tuple(sm.params.tolerances_mm))
+    save_figure(fig, figure_paths(sm.output, "across_png"), "r_values_all", prov)
+
+
+run_per_dataset(snakemake, main, across)  # noqa: F821

@@ -83,6 +83,16 @@ def test_outputs_exist_with_sidecars(smoke_runs):
         assert 'src="data:video/mp4;base64,' in page
     table = pd.read_csv(res / "tables" / "selected_markers.tsv", sep="\t", dtype=str)
     assert list(table.columns) == ["order", "S1", "S2a"]
+    # tables and figures across datasets, drawn by the rule over all datasets: each one's
+    # sidecar names the per-dataset tables it was made from, written by the same job
+    for rel, step, inputs in (
+            ("figures/error_curves", "evaluate_heldout", ["eval/error_curve.tsv"]),
+            ("tables/selected_markers", "rank_markers", ["qr/r_values.tsv", "qr/rank.tsv"]),
+            ("figures/r_values", "rank_markers", ["qr/r_values.tsv", "qr/rank.tsv"])):
+        meta = json.loads((res / f"{rel}.meta.json").read_text())
+        assert meta["step"] == step, rel
+        assert sorted(i["path"] for i in meta["inputs"]) == sorted(
+            f"results/smoke/{ds}/{f}" for ds in ("S1", "S2a") for f in inputs), rel
     manifest = pd.read_csv(res / "manifest.tsv", sep="\t", dtype=str)
     assert "results/smoke/S1/qr/r_values.tsv" in set(manifest["path"])
     assert "results/smoke/summary.txt" in set(manifest["path"])
@@ -111,7 +121,7 @@ def test_nothing_to_do_on_rerun_and_param_change_reruns_only_dependents(smoke_ru
     assert "Nothing to be done" in proc.stdout + proc.stderr
     proc = run_snakemake(a, "-n", extra_config="qr:\n  tolerances_mm: [0.3]\n")
     out = proc.stdout + proc.stderr
-    assert "rank_markers" in out and "tabulate_selection" in out
+    assert "rank_markers" in out
     assert "load_dataset" not in out and "simulate_subject" not in out
 
 
@@ -122,7 +132,7 @@ def test_figure_formats_setting_adds_vector_files(smoke_runs):
     out = proc.stdout + proc.stderr
     # every rule that draws a figure reruns for its new SVG files
     for rule in ("rank_markers", "fit_regions", "evaluate_heldout", "animate_heldout",
-                 "tabulate_selection", "load_dataset", "fit_lip_model"):
+                 "load_dataset", "fit_lip_model"):
         assert rule in out, rule
     proc = run_snakemake(a, "-n", extra_config="figures:\n  formats: [svg]\n", check=False)
     assert proc.returncode != 0 and "formats" in proc.stdout + proc.stderr
@@ -148,11 +158,12 @@ GATHER = {"summarise_study", "write_manifest", "all", "compare_with_papers"}
 
 
 @pytest.mark.parametrize("setting, reruns", [
-    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers", "tabulate_selection"}),
+    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers"}),
+    ("qr:\n  table_orders: 5\n", {"rank_markers"}),
     ("qr:\n  noise_mm: 0.3\n", {"find_redundant_markers"}),
     ("qr:\n  optimality_k_max: 2\n", {"compare_subsets"}),
     ("qr:\n  replicates: 10\n", {"sweep_sentences"}),
-    ("eval:\n  trajectory_k: 3\n", {"evaluate_heldout", "plot_error_curves"}),
+    ("eval:\n  trajectory_k: 3\n", {"evaluate_heldout"}),
     ("fit:\n  grid_n: 30\n", {"fit_regions"}),
     ("animation:\n  grid_n: 12\n", {"animate_heldout"}),
     ("gaps:\n  max_interp_s: 0.2\n", None),  # the data: everything after loading

@@ -8,8 +8,9 @@ interpolation of the markers' current positions, neutral + displacement, over th
 Frames are rendered off-screen with the Agg canvas at a fixed size, view and axis limits, so
 the same data give the same pixels. Each frame's caption is stamped onto the frame with Pillow in
 matplotlib's own font (DejaVu Sans): matplotlib lays out and rasterises a changing title glyph
-by glyph, about 10 ms a frame, more than the two surfaces together. ``write_animation`` writes a GIF (Pillow) or an MP4
-(libx264 through imageio-ffmpeg) atomically; both are byte-identical on rerun (tested).
+by glyph, about 10 ms a frame, more than the two surfaces together. ``write_animation`` writes
+a GIF (Pillow) or an MP4 (libx264 through imageio-ffmpeg) atomically; both are byte-identical
+on rerun (tested).
 
 3-D axes: the head's (x, y, z) are drawn as matplotlib's (x, -z, y), a proper rotation, so the
 vertical is y (up) and the default camera looks at the face from the front (azimuth -90):

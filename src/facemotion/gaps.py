@@ -100,7 +100,7 @@ def gap_report(rec: Recording, filled_by_us: np.ndarray | None = None,
         filled |= filled_by_us
     rows = []
     for j, label in enumerate(rec.labels):
-        r = runs(miss[:, j])
+        r = runs(miss[:, j]) if miss[:, j].any() else []
         rows.append({
             "marker": str(label),
             "frames": rec.n_frames,

@@ -24,7 +24,9 @@ rate of both routes against the GEMM peak of the same run).
 
 from __future__ import annotations
 
+import functools
 import os
+import sys
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 
@@ -48,6 +50,23 @@ def blas_threads() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux
         return os.cpu_count() or 1
+
+
+@functools.cache
+def _blas_controller(scipy_loaded: bool):
+    """threadpoolctl's view of the loaded BLAS libraries, found once per state: looking them
+    up costs a few milliseconds, a tenth of a Gram pass at 10x the paper's frames. numpy's and
+    scipy's wheels each bring their own OpenBLAS, so the view is taken again once scipy.linalg
+    has been imported (and loaded its library)."""
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
+
+
+def blas_limit(threads: int):
+    """Context manager: numpy's and scipy's BLAS limited to ``threads`` threads inside it."""
+    return _blas_controller("scipy.linalg" in sys.modules).limit(limits=int(threads),
+                                                                 user_api="blas")
 
 
 def _blocks_rows(n: int, block_bytes: int) -> int:
@@ -130,13 +149,11 @@ def gram(source, *, threads: int | None = None, route: str = "auto",
         route = "rows" if n <= ROWS_MAX_N else "blas"
     if block_rows is None and isinstance(source, np.ndarray):
         block_rows = _blocks_rows(n, CACHE_BLOCK_BYTES)
-    from threadpoolctl import threadpool_limits
-
     if route == "blas":
-        with threadpool_limits(threads, user_api="blas"):
+        with blas_limit(threads):
             return _gram_blas(source, block_rows)
     parts = _parts(source, threads) if rows >= 3 * threads else [source]
-    with threadpool_limits(1, user_api="blas"):
+    with blas_limit(1):
         if len(parts) == 1:
             return _gram_rows(parts[0], block_rows)
         with ThreadPoolExecutor(len(parts)) as ex:

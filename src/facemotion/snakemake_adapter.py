@@ -18,7 +18,7 @@ import logging
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -110,6 +110,11 @@ class _Part:
         return self._values.items()
 
 
+#: Outputs and params of a rule over several datasets that belong to the whole job (tables and
+#: figures across datasets, see :func:`run_per_dataset`), not to one dataset.
+ACROSS = "across_"
+
+
 def dataset_parts(sm):
     """The datasets of a job that runs one step over several datasets, one at a time.
 
@@ -127,12 +132,15 @@ def dataset_parts(sm):
     """
     datasets = list(sm.params.datasets)
     n = len(datasets)
-    common = {k: v for k, v in sm.params.items() if k not in ("datasets", "per_dataset")}
+    common = {k: v for k, v in sm.params.items()
+              if k not in ("datasets", "per_dataset") and not k.startswith(ACROSS)}
     per = sm.params.per_dataset if "per_dataset" in sm.params.keys() else {}
 
     def pick(files, i, own=None):
         out = {}
         for k, v in files.items():
+            if k.startswith(ACROSS):  # one output of the whole job: the gather step's
+                continue
             if own is not None and k in own:
                 out[k] = [str(f) for f in own[k]]
                 continue
@@ -216,10 +224,23 @@ def _fail(log: logging.Logger, msg: str) -> None:
     sys.exit(1)
 
 
-def run_per_dataset(sm, main: Callable) -> None:
+def across_provenance(sm, inputs: Iterable[str]) -> Provenance:
+    """Provenance of the outputs across datasets of a rule over several datasets: the job's
+    params as its config, ``inputs`` (files the job has just written per dataset) as its
+    inputs, the ``across_*`` outputs as the job's outputs."""
+    params = dict(sm.params.items())
+    outputs = [v for k, v in sm.output.items() if k.startswith(ACROSS)]
+    return Provenance(step=sm.rule, config={"wildcards": {}, "params": params},
+                      inputs=[str(f) for f in inputs], job_outputs=_flatten(outputs))
+
+
+def run_per_dataset(sm, main: Callable, across: Callable | None = None) -> None:
     """Run ``main(part, log, prov)`` for each dataset of a rule over several datasets (see
     :func:`dataset_parts`): the script is written as for one dataset; an error names the
-    dataset."""
+    dataset. Then ``across(sm, log)``, if given: the step that draws or tabulates all datasets
+    together (outputs and params named ``across_*``, left out of the per-dataset parts) from
+    what the job has just written, in the same job instead of a job of its own (each job costs
+    about a second of start-up)."""
 
     def each(sm, log, _prov):
         for dataset, part, prov in dataset_parts(sm):
@@ -230,5 +251,8 @@ def run_per_dataset(sm, main: Callable) -> None:
                 if dataset in str(exc):
                     raise
                 raise type(exc)(f"dataset {dataset}: {exc}") from exc
+        if across is not None:
+            log.info("all %d datasets together", len(sm.params.datasets))
+            across(sm, log)
 
     run_step(sm, each)

@@ -1,5 +1,6 @@
 # Held-out evaluation: error against k (Figs. 9-10) and a measured-vs-model trajectory.
-# One job over all datasets with held-out sentences (as the rules of qr.smk).
+# One job over all datasets with held-out sentences (as the rules of qr.smk), which also draws
+# their error curves overlaid.
 
 
 rule evaluate_heldout:
@@ -47,6 +48,14 @@ rule evaluate_heldout:
         traj_fig_meta=expand(
             "<results>/{dataset}/eval/trajectory.meta.json", dataset=EVAL_DATASETS
         ),
+        # across datasets: the error curves overlaid (drawn by the same job)
+        across_png=report(
+            "<results>/figures/error_curves.png",
+            caption="../report/error_curves_all.rst",
+            category="0. Summary",
+        ),
+        across_more=fig_more("<results>/figures/error_curves"),
+        across_fig_meta="<results>/figures/error_curves.meta.json",
     log:
         "<results>/logs/evaluate_heldout.log",
     benchmark:
@@ -67,7 +76,7 @@ rule evaluate_heldout:
         sentence=config["eval"]["trajectory_sentence"],
         k=config["eval"]["trajectory_k"],
     message:
-        "evaluate_heldout ({n} datasets): held-out error against k (L&M Figs. 9-10)".format(
+        "evaluate_heldout ({n} datasets): held-out error against k (L&M Figs. 9-10), overlaid".format(
             n=len(EVAL_DATASETS)
         )
     script:

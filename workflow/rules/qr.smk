@@ -32,6 +32,25 @@ rule rank_markers:
         fig_meta=expand(
             "<results>/{dataset}/qr/r_values_plot.meta.json", dataset=DATASETS
         ),
+        # across datasets (Table I, epsilon-ranks, Fig. 2 overlaid; drawn by the same job)
+        across_table="<results>/tables/selected_markers.tsv",
+        across_meta="<results>/tables/selected_markers.meta.json",
+        across_sel_png=report(
+            "<results>/figures/selected_markers.png",
+            caption="../report/selected_markers.rst",
+            category="0. Summary",
+        ),
+        across_sel_more=fig_more("<results>/figures/selected_markers"),
+        across_sel_meta="<results>/figures/selected_markers.meta.json",
+        across_summary="<results>/tables/rank_summary.tsv",
+        across_summary_meta="<results>/tables/rank_summary.meta.json",
+        across_png=report(
+            "<results>/figures/r_values.png",
+            caption="../report/r_values_all.rst",
+            category="0. Summary",
+        ),
+        across_more=fig_more("<results>/figures/r_values"),
+        across_fig_meta="<results>/figures/r_values.meta.json",
     log:
         "<results>/logs/rank_markers.log",
     benchmark:
@@ -52,8 +71,9 @@ rule rank_markers:
         route_check=config["qr"]["route_check"],
         tolerances_mm=config["qr"]["tolerances_mm"],
         r_normalisation=config["qr"]["r_normalisation"],
+        across_orders=config["qr"]["table_orders"],
     message:
-        "rank_markers ({n} datasets): QR with column pivoting, epsilon-rank (L&M Fig. 2)".format(
+        "rank_markers ({n} datasets): QR with column pivoting, epsilon-rank (L&M Fig. 2, Table I)".format(
             n=len(DATASETS)
         )
     script:
