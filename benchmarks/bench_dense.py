@@ -480,6 +480,8 @@ def main(argv=None) -> int:
                     help="load20k: also the previous gap filling (minutes at full size)")
     ap.add_argument("--only", nargs="*", default=["peak", "rank10x", "load20k", "reader",
                                                   "mem4g", "dense", "talker"])
+    ap.add_argument("--readme", help="replace the table between the bench-dense markers there "
+                    "with this run's rows")
     args = ap.parse_args(argv)
     OUT.mkdir(parents=True, exist_ok=True)
     load = os.getloadavg()[0]
@@ -514,7 +516,29 @@ def main(argv=None) -> int:
             fh.write("\t".join(f"{r[c]:.6g}" if isinstance(r[c], float) else str(r[c])
                                for c in cols) + "\n")
     tmp.replace(OUT / "bench_dense.tsv")
+    if args.readme:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from rule_times import update_readme
+
+        update_readme(args.readme, readme_table(args, load, load_end), "bench-dense")
     return 0
+
+
+def readme_table(args, load_start: float, load_end: float) -> str:
+    """This run's rows as the README's table (nothing the run did not measure)."""
+    lines = [f"Written by `python benchmarks/bench_dense.py --only {' '.join(args.only)} "
+             f"--readme README.md` (part of `make bench`) on {time.strftime('%Y-%m-%d %H:%M')}"
+             f": {args.threads} BLAS threads, medians of {args.reps} interleaved repetitions"
+             f"{', --quick sizes' if args.quick else ''}; load average {load_start:.2f} at the "
+             f"start and {load_end:.2f} at the end.", "",
+             "| case | measure | value | unit | target | met | note |",
+             "|---|---|---:|---|---|---|---|"]
+    for r in ROWS:
+        v = r["value"]
+        v = f"{v:.4g}" if isinstance(v, float) else str(v)
+        lines.append(f"| {r['case']} | {r['measure']} | {v} | {r['unit']} | {r['target']} | "
+                     f"{r['met']} | {r['note']} |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ other core is busy, through shared caches and frequency).
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import statistics
 import subprocess
@@ -67,6 +68,7 @@ def main() -> int:
     ap.add_argument("--readme", help="replace the per-rule table in this file")
     args = ap.parse_args()
     walls, jobs, rules, cpu = [], -1, {}, {}
+    load0 = os.getloadavg()[0]
     for i in range(args.repeat):
         with tempfile.TemporaryDirectory(prefix="facemotion-bench-") as tmp:
             wall, jobs = run_once(args, Path(tmp))
@@ -90,7 +92,15 @@ def main() -> int:
         f"\t{jobs}\t{args.target_s:.0f}\t{verdict}\n")
     (out / "rule_times.md").write_text(text + "\n")
     if args.readme:
-        update_readme(args.readme, text)
+        load = os.getloadavg()
+        head = (f"Written by `python benchmarks/bench_study.py --repeat {args.repeat} --readme "
+                f"README.md` (part of `make bench`) on {time.strftime('%Y-%m-%d %H:%M')}: the "
+                f"{name} from scratch with `--cores {args.cores}`, {len(walls)} run(s) of "
+                f"{jobs} jobs: {', '.join(f'{w:.1f}' for w in walls)} s wall, **median "
+                f"{wall:.1f} s** (target {args.target_s:.0f} s: {verdict}); load average "
+                f"{load0:.2f} before the first run, {load[0]:.2f} after the last. The table is "
+                "the last run's.")
+        update_readme(args.readme, head + "\n\n" + text)
     return 0
 
 

@@ -20,7 +20,6 @@ import re
 import sys
 from pathlib import Path
 
-START, END = "<!-- rule-times:start -->", "<!-- rule-times:end -->"
 DONE = re.compile(r"done: ([\d.]+) s CPU, of which ([\d.]+) s start-up")
 
 
@@ -73,18 +72,21 @@ def table(rules: dict[str, list[float]], cpu: dict[str, list[tuple[float, float]
     return "\n".join(lines)
 
 
-def replace_between_markers(text: str, new: str) -> str:
-    if START not in text or END not in text:
-        raise SystemExit(f"rule_times: markers {START} ... {END} not found")
-    head, rest = text.split(START, 1)
-    _, tail = rest.split(END, 1)
-    return f"{head}{START}\n{new}\n{END}{tail}"
+def replace_between_markers(text: str, new: str, name: str = "rule-times") -> str:
+    """``text`` with what lies between ``<!-- name:start -->`` and ``<!-- name:end -->``
+    replaced by ``new`` (every benchmark writes its README table this way)."""
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    if start not in text or end not in text:
+        raise SystemExit(f"benchmarks: markers {start} ... {end} not found")
+    head, rest = text.split(start, 1)
+    _, tail = rest.split(end, 1)
+    return f"{head}{start}\n{new}\n{end}{tail}"
 
 
-def update_readme(path, new: str) -> None:
-    """Replace the table between the markers of the file at ``path`` with ``new``."""
+def update_readme(path, new: str, name: str = "rule-times") -> None:
+    """Replace the table between the ``name`` markers of the file at ``path`` with ``new``."""
     p = Path(path)
-    p.write_text(replace_between_markers(p.read_text(), new))
+    p.write_text(replace_between_markers(p.read_text(), new, name))
 
 
 def main(argv=None) -> int:
