@@ -1,16 +1,24 @@
-"""Load a dataset's recordings into the displacement matrix A, with the gap check."""
+"""Load every dataset's recordings into its displacement matrix A, with the gap check.
+
+One job over all datasets (ordered by subject): a subject's takes are read once for all its
+datasets (e.g. S2a and S2a*, the same sentences in another order).
+"""
 
 from facemotion.copy_fill import parse_copy_markers
 from facemotion.displacements import save_displacements
 from facemotion.loading import load_dataset
 from facemotion.plots.gaps import plot_gaps
 from facemotion.provenance import save_figure, sidecar_for_existing, write_table
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.snakemake_adapter import figure_paths, run_per_dataset
 from facemotion.validation import Limits
+
+_TAKES = {"subject": None, "takes": {}}  # the takes of the subject being loaded
 
 
 def main(sm, log, prov):
     ds = sm.params.ds
+    if ds["subject"] != _TAKES["subject"]:  # datasets come grouped by subject
+        _TAKES.update(subject=ds["subject"], takes={})
     recordings = list(sm.params.recordings)
     gaps, checks = sm.params.gaps, sm.params.checks
     limits = Limits(max_distance_mm=gaps["max_distance_mm"],
@@ -26,7 +34,8 @@ def main(sm, log, prov):
         max_interp_s=sm.params.gaps["max_interp_s"], long_gaps=sm.params.gaps["long_gaps"],
         neutral=sm.params.neutral, limits=limits, sentences=ds["segments"],
         subject_prefix=ds["subject_prefix"],
-        copy_markers=parse_copy_markers(ds.get("copy_markers", []), "copy_markers"))
+        copy_markers=parse_copy_markers(ds.get("copy_markers", []), "copy_markers"),
+        takes=_TAKES["takes"])
     prov.inputs = list(prov.inputs) + [r for r in recordings]
     d = loaded.displacements
     log.info("A: %d rows x %d markers from %d sentences", *d.A.shape, len(d.sentences))
@@ -39,4 +48,4 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "gap_png"), "gaps", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

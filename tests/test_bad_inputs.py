@@ -114,12 +114,16 @@ def run_load(tmp: Path, paths, fmt="c3d", *, units=None, head=HEAD, exclude=HEAD
           "sentence_names": [Path(p).stem for p in recordings], "segments": None,
           "subject_prefix": None}
 
-    class SM:
+    data = [p for p in recordings if os.path.isfile(p)]
+
+    class SM:  # the load_dataset job over one dataset
         rule = "load_dataset"
-        input = _Names([p for p in recordings if os.path.isfile(p)])
-        output = _Names(**{n: str(out / f) for n, f in zip(names, files, strict=True)})
-        params = _Names(ds=ds, recordings=recordings, gaps=g, checks=c, neutral="first_frame")
-        wildcards = _Names(dataset="D")
+        input = _Names(data=data)
+        output = _Names(**{n: [str(out / f)] for n, f in zip(names, files, strict=True)})
+        params = _Names(datasets=["D"], per_dataset={"D": {
+            "ds": ds, "recordings": recordings, "inputs": {"data": data}}},
+            gaps=g, checks=c, neutral="first_frame")
+        wildcards = _Names()
         log = _Names([str(tmp / "job.log")])
 
     err = io.StringIO()
@@ -805,7 +809,7 @@ def tiny_study(tiny_data, tmp_path_factory):
     efbig = snake(work, target_b, fsize=48 * 1024)
     left_after_efbig = sorted(str(p.relative_to(work)) for p in (work / "results").rglob("*")
                               if p.is_file() and "logs" not in p.parts)
-    efbig_log = (work / "results" / "tiny" / "logs" / "load_dataset" / "B.log").read_text()
+    efbig_log = (work / "results" / "tiny" / "logs" / "load_dataset.log").read_text()
     b_run = snake(work, target_b)
     (work / "sheet.tsv").write_text(SHEET_HEAD + sheet_row("A", "a/*.c3d"))
     anim = work / "results" / "tiny" / "A" / "anim"

@@ -110,3 +110,36 @@ def test_dataset_without_heldout_sentences(tmp_path):
     no_train = out.sentences.assign(role="heldout")
     with pytest.raises(InputError, match="no training sentences"):
         split_roles(out.displacements, no_train)
+
+
+def test_datasets_of_one_subject_share_its_takes(tmp_path, monkeypatch):
+    """Two datasets of the same takes in other orders (as S2a and S2a*), loaded with one
+    shared ``takes`` dict: each take is read once, and each dataset is exactly what loading it
+    alone gives (the shared recordings are never modified)."""
+    import facemotion.readers
+
+    files = [str(tmp_path / f"s{i}.csv") for i in range(4)]
+    for i, f in enumerate(files):
+        make_take(f, i, drop=("m3", 20 + i, 26 + i))
+    reads = []
+    real_read = facemotion.readers.read_recording
+
+    def counting_read(path, *args, **kwargs):
+        reads.append(path)
+        return real_read(path, *args, **kwargs)
+
+    monkeypatch.setattr(facemotion.readers, "read_recording", counting_read)
+    kw = {"head_markers": HEAD, "exclude_markers": HEAD}
+    designs = [{"train": [0, 1, 2], "heldout": [3]}, {"train": [3, 2, 1], "heldout": [0]}]
+    shared: dict = {}
+    together = [load_dataset(files, "csv", **kw, **d, takes=shared) for d in designs]
+    assert sorted(reads) == sorted(files)  # every take read once for both datasets
+    reads.clear()
+    alone = [load_dataset(files, "csv", **kw, **d) for d in designs]
+    assert len(reads) == 2 * len(files)
+    for a, b in zip(together, alone, strict=True):
+        assert np.array_equal(a.displacements.A, b.displacements.A)
+        assert np.array_equal(a.displacements.neutral, b.displacements.neutral)
+        assert a.sentences.equals(b.sentences) and a.gap_report.equals(b.gap_report)
+    # the second design really is another order (another neutral pose and A)
+    assert not np.array_equal(together[0].displacements.A, together[1].displacements.A)

@@ -85,7 +85,8 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                  sentences: list | None = None,
                  subject_prefix: str | None = None,
                  copy_markers: list[tuple[str, str]] = (),
-                 markers_named_in: str = "the subject sheet") -> LoadedDataset:
+                 markers_named_in: str = "the subject sheet",
+                 takes: dict | None = None) -> LoadedDataset:
     """Load the sentences ``train + heldout`` (0-based indices into the sentences).
 
     The sentences are ``recordings`` (one file each) or, when given, ``sentences``: intervals
@@ -99,6 +100,9 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     the other gaps are filled.
     ``markers_named_in`` says in errors where the marker lists came from (the subject sheet, or
     the arguments of :func:`load`).
+    ``takes``: a dict shared by the calls that load several datasets of one subject (the same
+    files in another order, e.g. S2a and S2a*): each take is read once and kept there (the
+    recordings read are never modified). Without it, a take is dropped once cut.
     """
     from facemotion.gaps import fill_gaps
     from facemotion.head_motion import align_head
@@ -112,18 +116,23 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     chosen = [items[i] for i in order]
     paths = [s.take for s in chosen]
     roles = ["train"] * len(train) + ["heldout"] * len(heldout)
-    takes: dict[str, object] = {}
+    shared = takes is not None
+    takes = {} if takes is None else takes
     recs = []
+    n_takes, n_read = len(dict.fromkeys(paths)), 0
     for i, seg in enumerate(chosen):
-        if seg.take not in takes:
-            log.info("reading %s (%d/%d)", seg.take, len(takes) + 1, len(dict.fromkeys(paths)))
-            takes[seg.take] = read_recording(seg.take, fmt, units=units,
-                                             subject_prefix=subject_prefix)
-        recs.append(cut(takes[seg.take], seg))
+        key = (seg.take, fmt, units, subject_prefix)
+        if key not in takes:
+            n_read += 1
+            log.info("reading %s (%d/%d)", seg.take, n_read, n_takes)
+            takes[key] = read_recording(seg.take, fmt, units=units,
+                                        subject_prefix=subject_prefix)
+        recs.append(cut(takes[key], seg))
         if not seg.whole:
             log.info("sentence %d/%d %r: %s, %.4f-%.4f s, %d frames", i + 1, len(chosen),
                      seg.name, seg.take, seg.start_s, seg.end_s, recs[-1].n_frames)
-    takes.clear()
+    if not shared:
+        takes.clear()
     for rec in recs[1:]:
         check_same_take_layout(rec, recs[0])
     labels = recs[0].labels

@@ -366,6 +366,8 @@ with exit_on_error():
             "virtual_talkers"
         )
 EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
+# the datasets grouped by subject, in the sheet's order: the order load_dataset loads them in
+LOAD_ORDER = [d for s in SUBJECTS for d, ds in DATASETS.items() if ds.subject == s]
 
 
 # ---- every setting against the data's marker and sentence counts (parse time) ----
