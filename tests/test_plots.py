@@ -129,6 +129,86 @@ def test_region_maps_name_unknown_markers(face):
         plot_region_maps(neutral, labels, X)
 
 
+def _region_case(face):
+    neutral, labels = face
+    mains = ["1", "5", "20"]
+    secondary = [s for s in labels if s not in mains]
+    # smooth coefficients with a clearly negative lobe on the talker's left (x > 0)
+    xs = neutral[[labels.index(s) for s in secondary], 0]
+    X = pd.DataFrame([np.sin(xs / 25.0), np.cos(xs / 30.0), -0.01 * xs], index=mains,
+                     columns=secondary)
+    return neutral, labels, mains, X
+
+
+def test_region_map_image_is_the_interpolated_field_on_the_grid_nodes(face):
+    """The field is drawn as an image whose pixel centres are the grid nodes (origin lower):
+    each pixel holds the cubic interpolant at that node (independent griddata evaluation at
+    the node positions the image's extent implies), clipped at 0, masked outside the hull."""
+    neutral, labels, mains, X = _region_case(face)
+    C = region_coefficients(labels, X)
+    grid_n = 30
+    fig = plot_region_maps(neutral, labels, X, grid_n=grid_n, negative_below=0.05)
+    panels = [ax for ax in _data_axes(fig) if ax.get_title()]
+    for p, ax in enumerate(panels):
+        (image,) = ax.get_images()
+        data = image.get_array()
+        assert data.shape == (grid_n, grid_n)
+        x0, x1, y0, y1 = image.get_extent()
+        assert image.origin == "lower"
+        dx, dy = (x1 - x0) / grid_n, (y1 - y0) / grid_n
+        cx = x0 + dx * (np.arange(grid_n) + 0.5)  # pixel centres, columns: x
+        cy = y0 + dy * (np.arange(grid_n) + 0.5)  # rows from the bottom: y
+        np.testing.assert_allclose([cx[0], cx[-1], cy[0], cy[-1]],
+                                   [neutral[:, 0].min(), neutral[:, 0].max(),
+                                    neutral[:, 1].min(), neutral[:, 1].max()], atol=1e-9)
+        gx, gy = np.meshgrid(cx, cy)
+        ref = interpolate_at(neutral, C[p], np.column_stack([gx.ravel(), gy.ravel()]))
+        ref = ref.reshape(grid_n, grid_n)
+        inside = np.isfinite(ref)
+        assert 0.4 < inside.mean() < 0.95
+        np.testing.assert_array_equal(np.ma.getmaskarray(data), ~inside)
+        np.testing.assert_allclose(data[inside], np.clip(ref[inside], 0.0, None), atol=1e-9)
+
+
+def test_region_map_hatches_exactly_the_negative_subregions(face):
+    """Where the field is below -negative_below x the colour-scale maximum the panel has a
+    blue-hatched filled contour and a blue outline; the hatched area covers the grid nodes
+    below that level and none of those clearly above it."""
+    from matplotlib.colors import to_rgba
+    from matplotlib.contour import ContourSet
+
+    from facemotion.plots.facemap import NEGATIVE_COLOUR, interpolate_field
+
+    neutral, labels, mains, X = _region_case(face)
+    C = region_coefficients(labels, X)
+    fig = plot_region_maps(neutral, labels, X, grid_n=60, negative_below=0.05)
+    panels = [ax for ax in _data_axes(fig) if ax.get_title()]
+    level = -0.05 * max(1.0, float(C.max()))
+    gx, gy, Z = interpolate_field(neutral, C.T, 60)
+    hatched_panels = 0
+    for p, ax in enumerate(panels):
+        z = Z[..., p]
+        sets = [c for c in ax.collections if isinstance(c, ContourSet)]
+        filled = [c for c in sets if c.filled]
+        if not (np.nanmin(z) < level):
+            assert not sets
+            continue
+        hatched_panels += 1
+        (cf,) = filled
+        assert cf.hatches == ["////"]
+        np.testing.assert_allclose(cf.get_edgecolor()[0], to_rgba(NEGATIVE_COLOUR))
+        (line,) = [c for c in sets if not c.filled]
+        assert list(line.levels) == [pytest.approx(level)]
+        path = cf.get_paths()[0]
+        pts = np.column_stack([gx.ravel(), gy.ravel()])
+        inside = path.contains_points(pts).reshape(z.shape)
+        below = np.isfinite(z) & (z < level - 0.02)
+        above = np.isfinite(z) & (z > level + 0.02)
+        assert below.any()
+        assert inside[below].mean() > 0.95 and not inside[above].any()
+    assert hatched_panels >= 2  # the sine and the -x panels dip below the level
+
+
 def test_orthogonal_directions_match_an_unpivoted_qr(face, qr_case):
     neutral, labels = face
     A, R, piv, order = qr_case

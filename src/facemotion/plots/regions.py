@@ -25,6 +25,7 @@ from facemotion.plots.facemap import (
     draw_field,
     draw_markers,
     draw_mesh_field,
+    interpolate_field,
     label_index,
     mesh_values,
     setup_frontal,
@@ -112,6 +113,8 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
     art = None
     thr = negative_below * norm.vmax
     any_negative = bool((coeffs < -thr).any())
+    # one interpolation for all panels: they share the triangulation (same values as one each)
+    fields = interpolate_field(xy, coeffs.T, grid_n) if placed is None else None
     for p, ax in enumerate(axes):
         if p >= len(mains):
             ax.set_axis_off()
@@ -119,7 +122,9 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
         if placed is not None:
             art = draw_mesh_field(ax, placed, xy, coeffs[p], norm, negative_below=thr)
         else:
-            art = draw_field(ax, xy, coeffs[p], norm, grid_n, negative_below=thr)
+            gx, gy, z = fields
+            art = draw_field(ax, xy, coeffs[p], norm, grid_n, negative_below=thr,
+                             field=(gx, gy, z[..., p]))
         others = [m for m in mains if m != mains[p]] if highlight_all else []
         if others:
             io = label_index(labels, others)
