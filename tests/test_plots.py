@@ -149,6 +149,7 @@ def test_region_map_image_is_the_interpolated_field_on_the_grid_nodes(face):
     grid_n = 30
     fig = plot_region_maps(neutral, labels, X, grid_n=grid_n, negative_below=0.05)
     panels = [ax for ax in _data_axes(fig) if ax.get_title()]
+    assert len({(ax.get_xlim(), ax.get_ylim()) for ax in panels}) == 1  # one frontal view
     for p, ax in enumerate(panels):
         (image,) = ax.get_images()
         data = image.get_array()

@@ -16,6 +16,7 @@ import pandas as pd
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
+from matplotlib.ticker import NullFormatter
 
 from facemotion.errors import InputError
 from facemotion.face_mesh import FaceMesh, place_mesh
@@ -107,8 +108,9 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
     dots = len(labels) <= MAX_DOTS  # a dense layout: the mesh shows where the points are
     nrows, ncols = _grid_shape(len(mains))
     fig = Figure(figsize=(2.7 * ncols + 1.0, 3.0 * nrows + 0.6), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False)
-                         ).ravel()
+    # not shared: every panel gets the same limits (setup_frontal), and an inner panel's hidden
+    # tick labels get a formatter of their own that does nothing (below)
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     norm = Normalize(vmin=0.0, vmax=symmetric_limits(coeffs, floor=1.0))
     art = None
     thr = negative_below * norm.vmax
@@ -134,6 +136,11 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
         draw_markers(ax, xy, labels, highlight=[mains[p]], dots=dots)
         ax.set_title(titles[p], fontsize=10)
         ax.label_outer()
+        # the tick labels label_outer hid: not formatted again at every layout pass
+        if not ax.get_subplotspec().is_last_row():
+            ax.xaxis.set_major_formatter(NullFormatter())
+        if not ax.get_subplotspec().is_first_col():
+            ax.yaxis.set_major_formatter(NullFormatter())
     if art is not None:
         cb = fig.colorbar(art, ax=axes.tolist(), shrink=0.8, extend="neither")
         cb.set_label(cbar_label)

@@ -59,9 +59,21 @@ def _extent(artist, renderer, pad: float = 1.0):
 def keep_legible(fig, texts, inside=None, avoid=()) -> list:
     """Remove texts that would overlap an earlier one (``texts`` in priority order), stick
     out of the axes ``inside`` or overlap an artist in ``avoid`` (e.g. the legend), measured
-    from the rendered text extents. Returns the texts kept."""
-    fig.draw_without_rendering()
+    from the rendered text extents. Returns the texts kept.
+
+    Only what the extents depend on is computed (the layout, the axes' aspect, the
+    annotations' positions), not a whole draw: saving the figure draws it anyway."""
+    from matplotlib.text import Annotation
+
     renderer = fig._get_renderer()
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        engine.execute(fig)
+    for ax in fig.axes:
+        ax.apply_aspect()
+    for t in [*texts, *avoid]:
+        if isinstance(t, Annotation):
+            t.update_positions(renderer)
     box = inside.get_window_extent(renderer) if inside is not None else None
     blocked = [_extent(a, renderer) for a in avoid if a is not None]
     kept = []
