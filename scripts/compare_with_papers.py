@@ -3,7 +3,7 @@
 from facemotion.paper_comparison import compare, read_inputs
 from facemotion.plots.comparison import plot_paper_comparison
 from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import figure_paths, run_step
 
 
 def main(sm, log, prov):
@@ -23,7 +23,7 @@ def main(sm, log, prov):
     counts = table.groupby(["paper", "verdict"]).size().to_dict()
     log.info("%d rows; verdicts: %s", len(table), counts)
     fig = plot_paper_comparison(table)
-    save_figure(fig, [sm.output.png, sm.output.pdf], "paper_comparison", prov)
+    save_figure(fig, figure_paths(sm.output, "png"), "paper_comparison", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

@@ -1,18 +1,19 @@
-"""Write a virtual subject as C3D files (one per sentence) plus its ground truth; the dense
-talker (designs D468, D5023) in the subject's format, plus its mesh."""
+"""Write each virtual subject as C3D files (one per sentence) plus its ground truth; the dense
+talker (designs D468, D5023) in the subject's format, plus its mesh. One job for all of them."""
 
 from pathlib import Path
 
 from facemotion.dense_talker import DENSE_DESIGNS, simulate_dense, write_dense_subject
 from facemotion.provenance import write_artifact
 from facemotion.readers import write_c3d
-from facemotion.snakemake_adapter import run_step
+from facemotion.snakemake_adapter import run_per_dataset
 from facemotion.synth import simulate_subject, truth_npz_bytes
 
 
 def main(sm, log, prov):
     p = dict(sm.params.sim)
-    out = Path(sm.output[0])
+    out = Path(sm.output.dirs)
+    sid = sm.wildcards.dataset  # the subject (run_per_dataset's item)
     out.mkdir(parents=True, exist_ok=True)
     kwargs = {"seed": p["seed"], "n_sentences": p["n_sentences"],
               "talker_seed": p["talker_seed"]}
@@ -20,18 +21,18 @@ def main(sm, log, prov):
         kwargs["sentence_duration"] = tuple(p["sentence_duration"])
     if p["design"] in DENSE_DESIGNS:  # the dense talker: TRC, C3D or OpenFace CSV, mesh.obj
         subject = simulate_dense(p["design"], shared_data=p["shared_data"], **kwargs)
-        for path in write_dense_subject(subject, out, sm.wildcards.subject, p["format"]):
+        for path in write_dense_subject(subject, out, sid, p["format"]):
             log.info("wrote %s", path.name)
         write_artifact(out / "truth.npz", truth_npz_bytes(subject), "virtual_truth", prov)
         return
     subject = simulate_subject(p["design"], **kwargs)
     takes = []
     for i, (rec, name) in enumerate(zip(subject.recordings, subject.names, strict=True)):
-        takes.append(out / f"{sm.wildcards.subject}_s{i + 1:02d}.c3d")
+        takes.append(out / f"{sid}_s{i + 1:02d}.c3d")
         write_c3d(takes[-1], rec)
         log.info("wrote sentence %d/%d (%s)", i + 1, len(subject.names), name)
     write_artifact(out / "truth.npz", truth_npz_bytes(subject), "virtual_truth", prov,
                    also=takes)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

@@ -368,6 +368,12 @@ with exit_on_error():
 EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
 # the datasets grouped by subject, in the sheet's order: the order load_dataset loads them in
 LOAD_ORDER = [d for s in SUBJECTS for d, ds in DATASETS.items() if ds.subject == s]
+# the virtual subjects the datasets load (simulate_subject writes them all in one job)
+VIRTUAL = [
+    s
+    for s in dict.fromkeys(DATASETS[d].subject for d in LOAD_ORDER)
+    if SUBJECTS[s].simulate
+]
 
 
 # ---- every setting against the data's marker and sentence counts (parse time) ----

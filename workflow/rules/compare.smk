@@ -12,7 +12,7 @@ rule compare_with_papers:
             caption="../report/paper_comparison.rst",
             category="0. Summary",
         ),
-        pdf="<results>/figures/paper_comparison.pdf",
+        more=fig_more("<results>/figures/paper_comparison"),
         fig_meta="<results>/figures/paper_comparison.meta.json",
     log:
         "<results>/logs/compare_with_papers.log",
