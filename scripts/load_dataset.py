@@ -1,7 +1,8 @@
 """Load every dataset's recordings into its displacement matrix A, with the gap check.
 
 One job over all datasets (ordered by subject): a subject's takes are read once for all its
-datasets (e.g. S2a and S2a*, the same sentences in another order).
+datasets (e.g. S2a and S2a*, the same sentences in another order); with several threads, the
+subjects are loaded side by side (run_per_dataset's forked workers).
 """
 
 from facemotion.copy_fill import parse_copy_markers
@@ -48,4 +49,4 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "gap_png"), "gaps", prov)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main, group_by=lambda part: part.params.ds["subject"])  # noqa: F821

@@ -210,8 +210,12 @@ def run_step(sm, main: Callable) -> None:
         _fail(log, f"facemotion: {sm.rule}: {exc}")
     except (OSError, MemoryError) as exc:
         _fail(log, f"facemotion: {sm.rule}: {fault_message(exc)}")
+    import resource
+
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)  # worker processes, the MP4 encoder
     log.info("done: %.2f s CPU, of which %.2f s start-up before the step (modules it imports "
-             "while running are counted in the step)", time.process_time(), started)
+             "while running are counted in the step), and %.2f s CPU in child processes",
+             time.process_time(), started, kids.ru_utime + kids.ru_stime)
 
 
 def _fail(log: logging.Logger, msg: str) -> None:
@@ -234,23 +238,80 @@ def across_provenance(sm, inputs: Iterable[str]) -> Provenance:
                       inputs=[str(f) for f in inputs], job_outputs=_flatten(outputs))
 
 
-def run_per_dataset(sm, main: Callable, across: Callable | None = None) -> None:
+def _run_group(main: Callable, group: list, log: logging.Logger) -> None:
+    """``main`` for each (dataset, part, prov) of ``group``, in order; an error names the
+    dataset."""
+    for dataset, part, prov in group:
+        log.info("dataset %s", dataset)
+        try:
+            main(part, log, prov)
+        except FacemotionError as exc:
+            if dataset in str(exc):
+                raise
+            raise type(exc)(f"dataset {dataset}: {exc}") from exc
+
+
+_FORKED: dict = {}  # what forked workers run: set before the pool forks, never pickled
+
+
+def _run_group_in_worker(i: int) -> None:
+    """Group ``i`` of :data:`_FORKED` in a forked worker, its BLAS at one thread (the job's
+    threads are the workers)."""
+    from facemotion.gram import blas_limit
+
+    with blas_limit(1):
+        _run_group(_FORKED["main"], _FORKED["groups"][i], logging.getLogger("facemotion"))
+
+
+def run_per_dataset(sm, main: Callable, across: Callable | None = None,
+                    group_by: Callable | None = None) -> None:
     """Run ``main(part, log, prov)`` for each dataset of a rule over several datasets (see
     :func:`dataset_parts`): the script is written as for one dataset; an error names the
     dataset. Then ``across(sm, log)``, if given: the step that draws or tabulates all datasets
     together (outputs and params named ``across_*``, left out of the per-dataset parts) from
     what the job has just written, in the same job instead of a job of its own (each job costs
-    about a second of start-up)."""
+    about a second of start-up).
+
+    With more than one thread (the rule's ``threads``), the datasets are shared out among that
+    many worker processes forked from this one (so they start with its modules imported), in
+    groups that stay together in one worker and in order: consecutive datasets with the same
+    ``group_by(part)`` (e.g. a subject, whose takes its datasets share). Outputs are the same
+    either way: every dataset is computed on its own.
+    """
 
     def each(sm, log, _prov):
-        for dataset, part, prov in dataset_parts(sm):
-            log.info("dataset %s", dataset)
-            try:
-                main(part, log, prov)
-            except FacemotionError as exc:
-                if dataset in str(exc):
-                    raise
-                raise type(exc)(f"dataset {dataset}: {exc}") from exc
+        parts = list(dataset_parts(sm))
+        groups: list[list] = []
+        for item in parts:
+            key = group_by(item[1]) if group_by is not None else item[0]
+            if groups and key == groups[-1][0]:
+                groups[-1][1].append(item)
+            else:
+                groups.append((key, [item]))
+        groups = [g for _, g in groups]
+        workers = min(int(getattr(sm, "threads", 1) or 1), len(groups))
+        if workers <= 1:
+            _run_group(main, parts, log)
+        else:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+            from concurrent.futures.process import BrokenProcessPool
+
+            log.info("%d datasets in %d groups on %d worker processes", len(parts),
+                     len(groups), workers)
+            for h in log.handlers:
+                h.flush()
+            _FORKED.update(main=main, groups=groups)
+            with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")
+                                     ) as pool:
+                futures = [pool.submit(_run_group_in_worker, i) for i in range(len(groups))]
+                try:
+                    for f in futures:  # the first error in dataset order
+                        f.result()
+                except BrokenProcessPool as exc:
+                    raise FacemotionError(f"a worker process of this job died ({exc}); with "
+                                          "less memory per worker, give the rule fewer "
+                                          "threads") from None
         if across is not None:
             log.info("all %d datasets together", len(sm.params.datasets))
             across(sm, log)

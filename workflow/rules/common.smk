@@ -368,6 +368,8 @@ with exit_on_error():
 EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
 # the datasets grouped by subject, in the sheet's order: the order load_dataset loads them in
 LOAD_ORDER = [d for s in SUBJECTS for d, ds in DATASETS.items() if ds.subject == s]
+# load_dataset's worker processes: one per subject, at most 4 (Snakemake caps them at --cores)
+LOAD_THREADS = max(1, min(4, len({DATASETS[d].subject for d in LOAD_ORDER})))
 # the virtual subjects the datasets load (simulate_subject writes them all in one job)
 VIRTUAL = [
     s

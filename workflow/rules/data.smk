@@ -1,7 +1,8 @@
 # Loading: readers, head-motion removal, gap check and filling, the displacement matrix A.
 # One job over all datasets, grouped by subject (LOAD_ORDER): a subject's takes are read once
-# for all its datasets, and the job's start-up is paid once. Every dataset reruns when one
-# changes, as every analysis rule after it does anyway.
+# for all its datasets, and the job's start-up is paid once; with several threads, subjects are
+# loaded side by side in forked worker processes. Every dataset reruns when one changes, as
+# every analysis rule after it does anyway.
 
 
 rule load_dataset:
@@ -44,9 +45,9 @@ rule load_dataset:
     priority: 40
     conda:
         "../envs/facemotion.yaml"
-    threads: 1
+    threads: LOAD_THREADS
     resources:
-        mem_mb=4000,
+        mem_mb=4000 * LOAD_THREADS,
         runtime=20 * len(LOAD_ORDER),
     params:
         datasets=LOAD_ORDER,

@@ -1,5 +1,6 @@
 # Virtual subjects: the built-in default data, written as real C3D files (one per sentence).
-# One job for all virtual subjects (VIRTUAL), as load_dataset loads them all in one job.
+# One job for all virtual subjects (VIRTUAL), as load_dataset loads them all in one job; with
+# several threads, subjects are written side by side in forked worker processes.
 
 
 if VIRTUAL:
@@ -14,9 +15,9 @@ if VIRTUAL:
         priority: 50
         conda:
             "../envs/facemotion.yaml"
-        threads: 1
+        threads: min(4, len(VIRTUAL))
         resources:
-            mem_mb=2000,
+            mem_mb=2000 * min(4, len(VIRTUAL)),
             runtime=10 * len(VIRTUAL),
         params:
             datasets=VIRTUAL,

@@ -1,0 +1,77 @@
+"""Rules over several datasets: one job, each dataset on its own, in forked workers with threads."""
+
+import os
+from pathlib import Path
+
+import pytest
+
+from facemotion.errors import InputError
+from facemotion.snakemake_adapter import run_per_dataset
+
+
+class _Names(list):
+    """A list whose named items are also attributes, like Snakemake's namedlist."""
+
+    def __init__(self, items=(), **named):
+        super().__init__(list(items) + list(named.values()))
+        self._named = named
+        for k, v in named.items():
+            setattr(self, k, v)
+
+    def items(self):
+        return self._named.items()
+
+    def keys(self):
+        return self._named.keys()
+
+    def __getitem__(self, key):
+        return self._named[key] if isinstance(key, str) else super().__getitem__(key)
+
+
+def _job(tmp_path: Path, threads: int, subjects: dict[str, str]):
+    names = list(subjects)
+
+    class SM:
+        rule = "load_dataset"
+        input = _Names()
+        output = _Names(out=[str(tmp_path / f"{d}.txt") for d in names])
+        params = _Names(datasets=names, per_dataset={d: {"subject": s}
+                                                    for d, s in subjects.items()})
+        wildcards = _Names()
+        log = _Names([str(tmp_path / "job.log")])
+
+    SM.threads = threads
+    return SM()
+
+
+def _write_pid(sm, log, prov):
+    if sm.params.subject == "bad":
+        raise InputError("recording x.c3d: frame 3 is broken")
+    Path(sm.output.out).write_text(f"{os.getpid()} {sm.params.subject}")
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_every_dataset_is_run_and_groups_stay_in_one_worker(tmp_path, threads):
+    subjects = {"S2a": "S2a", "S2a_star": "S2a", "S1": "S1", "S2b": "S2b"}
+    run_per_dataset(_job(tmp_path, threads, subjects), _write_pid,
+                    group_by=lambda part: part.params.subject)
+    got = {d: (tmp_path / f"{d}.txt").read_text().split() for d in subjects}
+    assert {d: s for d, (_, s) in got.items()} == subjects  # each dataset its own params
+    pids = {d: int(p) for d, (p, _) in got.items()}
+    assert pids["S2a"] == pids["S2a_star"]  # a subject's datasets share one worker
+    if threads == 1:
+        assert set(pids.values()) == {os.getpid()}  # no workers: this process
+    else:
+        assert os.getpid() not in pids.values()  # forked workers did the work
+    assert "done:" in (tmp_path / "job.log").read_text()
+
+
+def test_an_error_in_a_worker_is_one_line_naming_the_dataset(tmp_path, capsys):
+    subjects = {"S1": "S1", "B1": "bad", "S2": "S2"}
+    with pytest.raises(SystemExit) as exc:
+        run_per_dataset(_job(tmp_path, 2, subjects), _write_pid)
+    assert exc.value.code == 1
+    lines = [x for x in capsys.readouterr().err.splitlines() if x.strip()]
+    assert lines == ["facemotion: load_dataset: dataset B1: recording x.c3d: frame 3 is "
+                     "broken"]
+    assert "Traceback" not in (tmp_path / "job.log").read_text()
