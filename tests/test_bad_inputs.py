@@ -30,6 +30,7 @@ import ezc3d
 import numpy as np
 import pandas as pd
 import pytest
+from standin import Names
 
 from facemotion.readers import c3d_layout, read_c3d, write_c3d, write_csv, write_trc
 from facemotion.recording import Recording
@@ -63,23 +64,6 @@ def write_takes(folder: Path, takes: list[Recording], fmt: str = "c3d") -> list[
 
 # --------------------------------------------------------------------------- the job harness
 
-class _Names(list):
-    """A list whose items are also attributes, like Snakemake's namedlist."""
-
-    def __init__(self, items=(), **named):
-        super().__init__(list(items) + list(named.values()))
-        self._named = named
-        for k, v in named.items():
-            setattr(self, k, v)
-
-    def items(self):
-        return self._named.items()
-
-    def keys(self):
-        return self._named.keys()
-
-    def __getitem__(self, key):
-        return self._named[key] if isinstance(key, str) else super().__getitem__(key)
 
 
 @dataclass
@@ -118,13 +102,13 @@ def run_load(tmp: Path, paths, fmt="c3d", *, units=None, head=HEAD, exclude=HEAD
 
     class SM:  # the load_dataset job over one dataset
         rule = "load_dataset"
-        input = _Names(data=data)
-        output = _Names(**{n: [str(out / f)] for n, f in zip(names, files, strict=True)})
-        params = _Names(datasets=["D"], per_dataset={"D": {
+        input = Names(data=data)
+        output = Names(**{n: [str(out / f)] for n, f in zip(names, files, strict=True)})
+        params = Names(datasets=["D"], per_dataset={"D": {
             "ds": ds, "recordings": recordings, "inputs": {"data": data}}},
             gaps=g, checks=c, neutral="first_frame")
-        wildcards = _Names()
-        log = _Names([str(tmp / "job.log")])
+        wildcards = Names()
+        log = Names([str(tmp / "job.log")])
 
     err = io.StringIO()
     code = 0

@@ -4,28 +4,10 @@ import os
 from pathlib import Path
 
 import pytest
+from standin import Names
 
 from facemotion.errors import InputError
 from facemotion.snakemake_adapter import run_per_dataset
-
-
-class _Names(list):
-    """A list whose named items are also attributes, like Snakemake's namedlist."""
-
-    def __init__(self, items=(), **named):
-        super().__init__(list(items) + list(named.values()))
-        self._named = named
-        for k, v in named.items():
-            setattr(self, k, v)
-
-    def items(self):
-        return self._named.items()
-
-    def keys(self):
-        return self._named.keys()
-
-    def __getitem__(self, key):
-        return self._named[key] if isinstance(key, str) else super().__getitem__(key)
 
 
 def _job(tmp_path: Path, threads: int, subjects: dict[str, str]):
@@ -33,12 +15,12 @@ def _job(tmp_path: Path, threads: int, subjects: dict[str, str]):
 
     class SM:
         rule = "load_dataset"
-        input = _Names()
-        output = _Names(out=[str(tmp_path / f"{d}.txt") for d in names])
-        params = _Names(datasets=names, per_dataset={d: {"subject": s}
+        input = Names()
+        output = Names(out=[str(tmp_path / f"{d}.txt") for d in names])
+        params = Names(datasets=names, per_dataset={d: {"subject": s}
                                                     for d, s in subjects.items()})
-        wildcards = _Names()
-        log = _Names([str(tmp_path / "job.log")])
+        wildcards = Names()
+        log = Names([str(tmp_path / "job.log")])
 
     SM.threads = threads
     return SM()
