@@ -67,18 +67,6 @@ def row(case, measure, value, unit, note="", target=None, met=None):
           f"{'' if target is None else target!s:>8s} {verdict:4s} {note}", flush=True)
 
 
-def interleaved(fns, reps):
-    """Median time of each function, run alternately ``reps`` times."""
-    times = [[] for _ in fns]
-    outs = [None] * len(fns)
-    for _ in range(reps):
-        for i, fn in enumerate(fns):
-            t0 = time.perf_counter()
-            outs[i] = fn()
-            times[i].append(time.perf_counter() - t0)
-    return [float(np.median(t)) for t in times], outs
-
-
 def vm_hwm_mib() -> float:
     """This process's peak resident set (VmHWM, MiB). Not ru_maxrss: Linux carries a forked
     child's maxrss over from its parent across exec, so a child of a big parent reads big."""
@@ -113,7 +101,7 @@ def case_peak(threads):
 
 def case_rank10x(threads, reps, peak):
     import scipy.linalg
-    from bench_qr import synthetic
+    from bench_qr import median_times, synthetic
     from threadpoolctl import threadpool_limits
 
     from facemotion.gram import gram, gram_flops
@@ -122,11 +110,11 @@ def case_rank10x(threads, reps, peak):
     A, labels, _ = synthetic(2000, seed=1)
     rows, n = A.shape
     with threadpool_limits(threads, user_api="blas"):
-        (t_ours, t_scipy), (rk, (_, P)) = interleaved(
+        (t_ours, t_scipy), (rk, (_, P)) = median_times(
             [lambda: rank_markers(A, labels, method="gram", threads=threads),
              lambda: scipy.linalg.qr(A, mode="r", pivoting=True, check_finite=False)], reps)
         assert np.array_equal(rk.order, P), "pivots differ from scipy's pivoted QR"
-        (t_rows, t_blas, t_np), _ = interleaved(
+        (t_rows, t_blas, t_np), _ = median_times(
             [lambda: gram(A, threads=threads, route="rows"),
              lambda: gram(A, threads=threads, route="blas"),
              lambda: A.T @ A], reps)
