@@ -6,6 +6,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from scipy.linalg import qr  # noqa: E402
 
@@ -120,6 +121,37 @@ def test_region_maps_figure(face):
     # Deterministic rendering.
     assert figure_bytes(fig, "png") == figure_bytes(plot_region_maps(neutral, labels, X,
                                                                      grid_n=40), "png")
+
+
+@pytest.mark.parametrize("k", [3, 4, 7, 10])
+def test_region_maps_fixed_layout_keeps_every_text_inside_and_nothing_overlaps(face, k):
+    """The region maps' layout is fixed in inches (no constrained layout): every text is
+    inside the figure, no panel overlaps another, the colour bar or the suptitle, and the
+    suptitle is wrapped to the figure's width."""
+    neutral, labels = face
+    mains = labels[:k]
+    secondary = [s for s in labels if s not in mains]
+    X = pd.DataFrame(np.cos(np.arange(k * len(secondary))).reshape(k, -1) - 0.3,
+                     index=mains, columns=secondary)
+    fig = plot_region_maps(neutral, labels, X, grid_n=30)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    r = canvas.get_renderer()
+    box = fig.bbox
+    texts = [t for t in fig.findobj(matplotlib.text.Text) if t.get_visible() and t.get_text()]
+    for t in texts:
+        e = t.get_window_extent(r)
+        assert (e.x0 >= box.x0 - 1 and e.x1 <= box.x1 + 1 and e.y0 >= box.y0 - 1
+                and e.y1 <= box.y1 + 1), t.get_text()
+    panels = [ax for ax in _data_axes(fig) if ax.get_title()]
+    cbar = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+    assert len(panels) == k and len(cbar) == 1
+    frames = [ax.get_tightbbox(r) for ax in panels]  # the panel with its ticks and title
+    for i, a in enumerate(frames):
+        for b in frames[i + 1:]:
+            assert not a.overlaps(b)
+        assert not a.overlaps(cbar[0].get_window_extent(r))
+        assert not a.overlaps(fig._suptitle.get_window_extent(r))
 
 
 def test_region_maps_name_unknown_markers(face):

@@ -8,6 +8,7 @@ colour scale shared by all panels; negative subregions are hatched and outlined 
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -107,14 +108,36 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
         extent = np.vstack([xy, placed.positions[np.unique(drawn), :2]])
     dots = len(labels) <= MAX_DOTS  # a dense layout: the mesh shows where the points are
     nrows, ncols = _grid_shape(len(mains))
-    fig = Figure(figsize=(2.7 * ncols + 1.0, 3.0 * nrows + 0.6), layout="constrained")
-    # not shared: every panel gets the same limits (setup_frontal), and an inner panel's hidden
-    # tick labels get a formatter of their own that does nothing (below)
-    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     norm = Normalize(vmin=0.0, vmax=symmetric_limits(coeffs, floor=1.0))
-    art = None
     thr = negative_below * norm.vmax
     any_negative = bool((coeffs < -thr).any())
+    if placed is not None:
+        suptitle += (f"\non the face mesh {Path(mesh.name).name} ({len(placed.positions)} "
+                     f"vertices, {int((placed.marker_index >= 0).sum())} of them markers; "
+                     "values between markers interpolated on its triangles)")
+    width = 2.7 * ncols + 1.0
+    # wrapped to the figure's width (about 11 characters an inch at the suptitle's 12 pt)
+    suptitle = "\n".join(textwrap.fill(line, int(width * 10.5))
+                         for line in suptitle.split("\n"))
+    suptitle_lines = suptitle.count("\n") + 1
+    height = 3.0 * nrows + 0.6 + 0.3 * (suptitle_lines - 1)
+    fig = Figure(figsize=(width, height))
+    # A fixed layout in inches (matplotlib's constrained layout measured every tick label of
+    # every panel in two passes: half of the figure's cost): room on the left for the y tick
+    # labels and label, below for the x ones (and the legend), above for the suptitle and the
+    # panel titles, on the right for the colour bar.
+    left, right, bottom = 0.75, 1.1, 0.62 + (0.22 if any_negative else 0.0)
+    top = 0.22 + 0.24 * suptitle_lines + 0.3
+    # not shared: every panel gets the same limits (setup_frontal), and an inner panel's hidden
+    # tick labels get a formatter of their own that does nothing (below)
+    cell_w = (width - left - right) / ncols
+    cell_h = (height - top - bottom) / nrows
+    gap_w, gap_h = 0.25, 0.42  # between panels: tick marks; a panel title
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False, gridspec_kw={
+        "left": left / width, "right": 1 - right / width, "bottom": bottom / height,
+        "top": 1 - top / height, "wspace": gap_w / (cell_w - gap_w),
+        "hspace": gap_h / (cell_h - gap_h)})).ravel()
+    art = None
     # one interpolation for all panels: they share the triangulation (same values as one each)
     fields = interpolate_field(xy, coeffs.T, grid_n) if placed is None else None
     for p, ax in enumerate(axes):
@@ -142,17 +165,17 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
         if not ax.get_subplotspec().is_first_col():
             ax.yaxis.set_major_formatter(NullFormatter())
     if art is not None:
-        cb = fig.colorbar(art, ax=axes.tolist(), shrink=0.8, extend="neither")
+        plot_h = 1 - (top + bottom) / height
+        cax = fig.add_axes((1 - (right - 0.25) / width, bottom / height + 0.1 * plot_h,
+                            0.15 / width, 0.8 * plot_h), label="<colorbar>")
+        cb = fig.colorbar(art, cax=cax, extend="neither")
         cb.set_label(cbar_label)
     if any_negative:
         fig.legend(handles=[Patch(facecolor="white", edgecolor=NEGATIVE_COLOUR, hatch="////",
                                   label=f"negative: below {-thr:.2g} (values < 0 are white)")],
-                   loc="outside lower right", fontsize=8, frameon=False)
-    if placed is not None:
-        suptitle += (f"\non the face mesh {Path(mesh.name).name} ({len(placed.positions)} "
-                     f"vertices, {int((placed.marker_index >= 0).sum())} of them markers; "
-                     "values between markers interpolated on its triangles)")
-    fig.suptitle(suptitle)
+                   loc="lower right", bbox_to_anchor=(1 - 0.05 / width, 0.02 / height),
+                   fontsize=8, frameon=False)
+    fig.suptitle(suptitle, y=1 - 0.12 / height, va="top")
     return fig
 
 
