@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import itertools
 import logging
 import os
 import sys
@@ -281,14 +282,9 @@ def run_per_dataset(sm, main: Callable, across: Callable | None = None,
 
     def each(sm, log, _prov):
         parts = list(dataset_parts(sm))
-        groups: list[list] = []
-        for item in parts:
-            key = group_by(item[1]) if group_by is not None else item[0]
-            if groups and key == groups[-1][0]:
-                groups[-1][1].append(item)
-            else:
-                groups.append((key, [item]))
-        groups = [g for _, g in groups]
+        # consecutive (dataset, part, prov) with the same key; without group_by, one each
+        groups = [list(g) for _, g in itertools.groupby(
+            parts, key=(lambda item: group_by(item[1])) if group_by else (lambda item: item[0]))]
         workers = min(int(getattr(sm, "threads", 1) or 1), len(groups))
         if workers <= 1:
             _run_group(main, parts, log)
