@@ -1,11 +1,13 @@
 """Figure rendering times: region maps (57 markers, and 468 landmarks on a grid or on the face
-mesh) in PNG only (the default) and PNG + PDF, and animation frames.
+mesh) in PNG only (the default) and PNG + PDF, and animation frames (against the same
+frames drawn by matplotlib's artists, in the same run).
 
-    python benchmarks/bench_figures.py [--repeats N]
+    python benchmarks/bench_figures.py [--repeats N] [--animation-only]
 
 The faces are the canonical face mesh's vertices (../shared/data/mesh, cm -> mm) and a 57-vertex
 subset of them; the maps show smooth planted coefficient fields with shallow negative
-subregions, k = 10 panels. Medians of N interleaved repetitions, one thread, wall time.
+subregions, k = 10 panels. Medians of N interleaved repetitions, one thread; wall time for the
+maps, CPU time for the animation frames.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ def time_region_map(neutral, labels, X, mesh, formats) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--animation-only", action="store_true", help="skip the region maps")
     args = ap.parse_args()
     mesh = read_face_mesh(shared_data() / "mesh" / "canonical_face_model.obj")
     neutral468 = 10.0 * mesh.vertices
@@ -77,23 +80,31 @@ def main() -> None:
     }
     Xs = {name: planted_X(c[0], c[1]) for name, c in cases.items()}
     times: dict[str, list[float]] = {name: [] for name in cases}
-    for _ in range(args.repeats):
+    for _ in range(0 if args.animation_only else args.repeats):
         for name, (neutral, labels, m, formats) in cases.items():
             times[name].append(time_region_map(neutral, labels, Xs[name], m, formats))
-    print(f"region maps, k = 10 panels, median of {args.repeats}:")
-    for name, ts in times.items():
-        print(f"  {name:32s} {statistics.median(ts):6.2f} s")
-    # animation: 60 frames of a 57-marker face
+    if not args.animation_only:
+        print(f"region maps, k = 10 panels, median of {args.repeats}:")
+        for name, ts in times.items():
+            print(f"  {name:32s} {statistics.median(ts):6.2f} s")
+    # animation: 60 frames of a 57-marker face, drawn as the workflow draws them (FaceAnimation
+    # .frame) and by matplotlib's artists (frame_reference: the renderer frame replaced),
+    # interleaved, CPU time
     rng = np.random.default_rng(1)
     T = 60
     motion = np.sin(np.arange(T)[:, None, None] / 5.0) * rng.normal(size=(1, 57, 3))
     anim = FaceAnimation(neutral57, motion, 0.8 * motion, labels57, labels57[:10])
-    t = time.perf_counter()
-    for i in range(T):
-        anim.frame(i, f"frame {i + 1}")
-    dt = time.perf_counter() - t
-    print(f"animation frames (57 markers, 800 x 460 px): {1000 * dt / T:.0f} ms/frame")
-
+    frame_ms: dict[str, list[float]] = {"frame": [], "frame_reference": []}
+    for _ in range(args.repeats):
+        for name in frame_ms:
+            draw = getattr(anim, name)
+            t = time.process_time()
+            for i in range(T):
+                draw(i, f"frame {i + 1}")
+            frame_ms[name].append(1000 * (time.process_time() - t) / T)
+    new, ref = (statistics.median(v) for v in frame_ms.values())
+    print(f"animation frames (57 markers, 800 x 460 px, CPU, median of {args.repeats}): "
+          f"{new:.1f} ms/frame; matplotlib's artists {ref:.1f} ms/frame ({ref / new:.1f}x)")
 
 if __name__ == "__main__":
     main()
