@@ -579,3 +579,57 @@ def test_sweep_summary_keeps_points_apart_when_an_unused_axis_changes_the_value(
     values = np.concatenate([ln.get_ydata() for ax in fig.axes if ax.get_ylabel() ==
                              "epsilon-rank" for ln in ax.get_lines()])
     assert sorted(values.tolist()) == [5, 6, 6, 7]
+
+
+# ---------------------------------------------------------------- titles at a fixed place
+
+
+def assert_titles_clear(fig):
+    """Every axes title is at its fixed place (y = 1: plots.style.set_title, no automatic lift)
+    and overlaps no other text of the figure (tick labels, offset texts, axis labels)."""
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    r = canvas.get_renderer()
+    titled = [ax for ax in fig.axes if ax.get_title(loc="center") or ax.get_title(loc="left")]
+    assert titled
+    titles = [t for ax in titled for t in (ax.title, ax._left_title) if t.get_text()]
+    others = [t for t in fig.findobj(matplotlib.text.Text)
+              if t.get_visible() and t.get_text() and t not in titles]
+    for title in titles:
+        assert title.get_position()[1] == 1.0, title.get_text()
+        e = title.get_window_extent(r)
+        for t in others:
+            assert not e.overlaps(t.get_window_extent(r)), (title.get_text(), t.get_text())
+
+
+def _titled_figures(face, qr_case):
+    neutral, labels = face
+    A, R, piv, order = qr_case
+    k = np.arange(1, 11)
+    t = np.arange(50) / 120.0
+    offset = np.column_stack([100 + 1e-3 * np.sin(t), 1e-6 * np.cos(t), t])  # offset texts
+    rows = [{"n_sentences": n, "order": o, "marker": f"m{o}", "r_rms": 1e-4 / o + 1.0}
+            for n in range(1, 6) for o in range(1, 15)]
+    mains = labels[:4]
+    X = pd.DataFrame(np.cos(np.arange(4 * (len(labels) - 4))).reshape(4, -1), index=mains,
+                     columns=labels[4:])
+    return {
+        "regions": lambda: plot_region_maps(neutral, labels, X, grid_n=20),
+        "orthogonal": lambda: plot_orthogonal_directions(neutral, labels, R, order,
+                                                         n_pivots=4, grid_n=20),
+        "r_values": lambda: plot_r_values({"S1": _r_table(labels)}),
+        "sweep": lambda: plot_sentence_sweep(pd.DataFrame(rows)),
+        "trajectory": lambda: plot_trajectory(t, offset, offset + 1e-4, marker="Chin",
+                                              sentence="s03", k=10),
+        "gaps": lambda: plot_gaps(t, np.eye(50, 6, dtype=bool), np.zeros((50, 6), bool),
+                                  labels[:6]),
+        "markers": lambda: plot_markers(neutral, labels, highlight=["1"]),
+        "selection": lambda: plot_selection_agreement(pd.DataFrame(
+            {"order": [1, 2, 3], "S1": ["40", "12", "7"], "S2": ["12", "40", "9"]}), k=2),
+    }
+
+
+@pytest.mark.parametrize("name", ["regions", "orthogonal", "r_values", "sweep", "trajectory",
+                                  "gaps", "markers", "selection"])
+def test_titles_sit_at_the_top_of_their_axes_clear_of_every_other_text(face, qr_case, name):
+    assert_titles_clear(_titled_figures(face, qr_case)[name]())

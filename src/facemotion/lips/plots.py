@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from facemotion.lips.mesh import LipMesh
+from facemotion.plots.style import set_title
 
 _VIEWS = (("frontal (x-y)", 0, 1), ("profile (z-y)", 2, 1))
 
@@ -40,7 +41,7 @@ def plot_mesh(mesh: LipMesh, tracked: list[str] | np.ndarray | None = None,
         if len(tr):
             ax.plot(mesh.nodes[tr, a], mesh.nodes[tr, b], "o", color="tab:red", ms=5,
                     label="tracked")
-        ax.set_title(title)
+        set_title(ax, title)
         ax.set_xlabel("xyz"[a] + " (mm)")
         ax.set_ylabel("xyz"[b] + " (mm)")
         ax.set_aspect("equal", adjustable="datalim")
@@ -71,7 +72,7 @@ def plot_modes(mean_disp: np.ndarray, modes: np.ndarray, mesh: LipMesh,
         ax = fig.add_subplot(2, n_show + 1, row * (n_show + 1) + 1)
         _draw(ax, mesh, mesh.nodes, a, b, color="0.75")
         _draw(ax, mesh, mesh.nodes + mean_mm, a, b, color="k", lw=0.7)
-        ax.set_title(f"mean displacement\n{view}", fontsize=9)
+        set_title(ax, f"mean displacement\n{view}", fontsize=9)
         for j in range(n_show):
             ax = fig.add_subplot(2, n_show + 1, row * (n_show + 1) + j + 2)
             base = mesh.nodes + mean_mm
@@ -79,7 +80,7 @@ def plot_modes(mean_disp: np.ndarray, modes: np.ndarray, mesh: LipMesh,
             for sign, color in ((-2, "tab:blue"), (2, "tab:red")):
                 _draw(ax, mesh, base + sign * sd[j] * modes[j] / k_unit, a, b, color, lw=0.7)
             share = "" if fractions is None else f", {100 * fractions[j]:.1f} % of variance"
-            ax.set_title(f"mode {j + 1}{share}\n{view}", fontsize=9)
+            set_title(ax, f"mode {j + 1}{share}\n{view}", fontsize=9)
     for ax in fig.axes:
         ax.set_aspect("equal", adjustable="datalim")
         ax.tick_params(labelsize=7)

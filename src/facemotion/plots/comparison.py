@@ -7,7 +7,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from facemotion.plots.style import require_columns
+from facemotion.plots.style import require_columns, set_title
 
 VERDICT_COLOUR = {"reproduced": "#228833", "same shape": "#CCBB44", "differs": "#EE6677",
                   "not measured": "#BBBBBB"}
@@ -63,7 +63,7 @@ def plot_paper_comparison(table: pd.DataFrame) -> Figure:
     ax.set_xlim(CLIP[0] / 1.5, CLIP[1] * 1.5)
     ax.set_ylim(-0.8, max(len(num) - 0.2, 0.8))
     ax.set_xlabel("our value / the paper's value (log scale; grey band: within 1.5x)")
-    ax.set_title("Numeric statements of the papers", fontsize=10)
+    set_title(ax, "Numeric statements of the papers", fontsize=10)
     ax.grid(True, axis="x", which="major", alpha=0.3)
     handles = [Line2D([], [], ls="", marker="o", mfc=c, mec=c, label=v)
                for v, c in VERDICT_COLOUR.items() if v != "not measured"]
@@ -93,7 +93,7 @@ def plot_paper_comparison(table: pd.DataFrame) -> Figure:
         bx.text(0.5, 0.5, "Table I not measured", ha="center", va="center",
                 transform=bx.transAxes)
         bx.set_axis_off()
-    bx.set_title("L&M Table I: same marker (green),\nsame region (yellow), other (red)",
+    set_title(bx, "L&M Table I: same marker (green),\nsame region (yellow), other (red)",
                  fontsize=9)
     fig.suptitle("The papers' quantitative statements against this study "
                  "(tables/paper_comparison.tsv)", fontsize=11)

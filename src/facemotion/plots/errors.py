@@ -11,7 +11,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator, PercentFormatter
 
 from facemotion.errors import InputError
-from facemotion.plots.style import MARKERS, colour, plain_log_labels, require_tables
+from facemotion.plots.style import MARKERS, colour, plain_log_labels, require_tables, set_title
 
 _EXTRA = {"median_abs_error_mm": ("median", "--"), "rms_error_mm": ("rms", "-."),
           "max_abs_error_mm": ("max", ":")}
@@ -141,7 +141,7 @@ def plot_trajectory(time_s, measured, predicted, marker: str, sentence: str, k: 
         ax.text(0.99, 0.04, f"max |error| {err:.2f} mm", transform=ax.transAxes, ha="right",
                 va="bottom", fontsize=8, color="0.25")
         ax.set_ylabel(f"{names[a].split(' ')[0]} (mm)")
-        ax.set_title(names[a], fontsize=9, loc="left")
+        set_title(ax, names[a], fontsize=9, loc="left")
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8, loc="upper right", ncols=2)
     axes[-1].set_xlabel("time (s)")

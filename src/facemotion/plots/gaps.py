@@ -10,6 +10,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from facemotion.errors import InputError
+from facemotion.plots.style import set_title
 
 MISSING_COLOUR = "#EE6677"  # red: missing and left unfilled
 FILLED_COLOUR = "#4477AA"  # blue: filled (interpolated or reconstructed)
@@ -90,7 +91,7 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
     if show.size == 0:
         ax.text(0.5, 0.5, f"no missing or filled samples in any of the {len(labels)} markers",
                 transform=ax.transAxes, ha="center", va="center")
-    ax.set_title(title, fontsize=9.5)
+    set_title(ax, title, fontsize=9.5)
     ax.grid(True, axis="x", alpha=0.3)
     fig.legend(handles=[Patch(color=MISSING_COLOUR, label="missing (not filled)"),
                         Patch(color=FILLED_COLOUR, label="filled"),

@@ -15,6 +15,7 @@ from facemotion.plots.facemap import (
     label_index,
     setup_frontal,
 )
+from facemotion.plots.style import set_title
 
 
 def plot_markers(neutral, labels: Sequence[str], highlight: Sequence[str] | None = None,
@@ -47,10 +48,10 @@ def plot_markers(neutral, labels: Sequence[str], highlight: Sequence[str] | None
                     color=MAIN_COLOUR if i in hs else "0.15",
                     fontweight="bold" if i in hs else "normal")
     setup_frontal(ax, xy)
-    ax.set_title("Frontal view (talker's right on the viewer's left)", fontsize=9.5)
+    set_title(ax, "Frontal view (talker's right on the viewer's left)", fontsize=9.5)
     side.set_aspect("equal", adjustable="datalim")
     side.set_xlabel("z (mm), forward")
-    side.set_title("Profile from the talker's left (face to the right)", fontsize=9.5)
+    set_title(side, "Profile from the talker's left (face to the right)", fontsize=9.5)
     for a in (ax, side):
         a.grid(True, alpha=0.25)
     note = "" if label_all else f"; labels shown for highlighted markers only ({len(labels)} " \

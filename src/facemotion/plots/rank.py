@@ -15,6 +15,7 @@ from facemotion.plots.style import (
     keep_legible,
     plain_log_labels,
     require_tables,
+    set_title,
 )
 
 #: y-axis label per normalisation of R (the ``r_normalisation`` column of r_values.tsv)
@@ -87,7 +88,7 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     ylabel = (_NORM_LABEL.get(norms.pop(), column) if len(norms) == 1
               else f"{column} (mm, log scale)")
     ax.set_ylabel(ylabel)
-    ax.set_title("Independent motion of each pivot marker (diagonal of R)")
+    set_title(ax, "Independent motion of each pivot marker (diagonal of R)")
     ax.grid(True, which="major", alpha=0.3)
     plain_log_labels(ax.yaxis)
     legend = ax.legend(fontsize=8, loc="upper right")

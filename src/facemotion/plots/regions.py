@@ -34,6 +34,7 @@ from facemotion.plots.facemap import (
     symmetric_limits,
     visible_triangles,
 )
+from facemotion.plots.style import set_title
 
 #: above this many markers they are not drawn as dots (the mesh or field shows the layout)
 MAX_DOTS = 150
@@ -157,7 +158,7 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
                        linewidths=0.7, zorder=4)
         setup_frontal(ax, extent)
         draw_markers(ax, xy, labels, highlight=[mains[p]], dots=dots)
-        ax.set_title(titles[p], fontsize=10)
+        set_title(ax, titles[p], fontsize=10)
         ax.label_outer()
         # the tick labels label_outer hid: not formatted again at every layout pass
         if not ax.get_subplotspec().is_last_row():

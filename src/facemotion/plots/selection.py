@@ -9,6 +9,7 @@ from matplotlib.colors import BoundaryNorm
 from matplotlib.figure import Figure
 
 from facemotion.errors import InputError
+from facemotion.plots.style import set_title
 
 
 def selection_counts(table: pd.DataFrame, k: int) -> pd.DataFrame:
@@ -67,14 +68,14 @@ def plot_selection_agreement(table: pd.DataFrame, k: int | None = None) -> Figur
     ax.set_yticks(np.arange(nm), counts["marker"], fontsize=7.5)
     ax.set_xlabel("dataset")
     ax.set_ylabel("marker")
-    ax.set_title(f"Pivot order (blank: not among first {k})", fontsize=9)
+    set_title(ax, f"Pivot order (blank: not among first {k})", fontsize=9)
     cb = fig.colorbar(im, ax=ax, location="bottom", shrink=0.9, aspect=30)
     cb.set_ticks(np.arange(1, k + 1, max(1, k // 8)))
     cb.set_label("pivot order")
     bar.barh(np.arange(nm), counts["count"], color="#4477AA", height=0.7)
     bar.set_xlim(0, len(datasets) + 0.3)
     bar.set_xlabel("datasets selecting it")
-    bar.set_title(f"among the first {k}", fontsize=9)
+    set_title(bar, f"among the first {k}", fontsize=9)
     bar.grid(True, axis="x", alpha=0.3)
     bar.xaxis.get_major_locator().set_params(integer=True)
     fig.suptitle(f"Agreement of the first {k} selected markers across {len(datasets)} datasets")

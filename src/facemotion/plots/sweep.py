@@ -8,7 +8,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from facemotion.errors import InputError
-from facemotion.plots.style import LINESTYLES, MARKERS, plain_log_labels, require_columns
+from facemotion.plots.style import LINESTYLES, MARKERS, plain_log_labels, require_columns, set_title
 
 
 def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
@@ -54,7 +54,7 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
         ax.set_ylabel("r_rms of the pivot (mm, log scale)")
     else:
         ax.set_ylabel("r_rms of the pivot (mm)")
-    ax.set_title(f"Stability of the first {len(orders)} pivots against the number of sentences\n"
+    set_title(ax, f"Stability of the first {len(orders)} pivots against the number of sentences\n"
                  "(small labels: pivot marker where it differs from the final one)",
                  fontsize=9.5)
     ax.grid(True, alpha=0.3)
