@@ -49,4 +49,5 @@ def main(sm, log, prov):
     save_figure(fig, figure_paths(sm.output, "gap_png"), "gaps", prov)
 
 
-run_per_dataset(snakemake, main, group_by=lambda part: part.params.ds["subject"])  # noqa: F821
+run_per_dataset(snakemake, main, group_by=lambda part: part.params.ds["subject"],  # noqa: F821
+                cost=lambda part: len(part.params.recordings))

@@ -35,4 +35,4 @@ def main(sm, log, prov):
                    also=takes)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main, cost=lambda part: part.params.sim["n_sentences"])  # noqa: F821

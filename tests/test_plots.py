@@ -605,7 +605,6 @@ def assert_titles_clear(fig):
 def _titled_figures(face, qr_case):
     neutral, labels = face
     A, R, piv, order = qr_case
-    k = np.arange(1, 11)
     t = np.arange(50) / 120.0
     offset = np.column_stack([100 + 1e-3 * np.sin(t), 1e-6 * np.cos(t), t])  # offset texts
     rows = [{"n_sentences": n, "order": o, "marker": f"m{o}", "r_rms": 1e-4 / o + 1.0}

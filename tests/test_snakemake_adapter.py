@@ -57,3 +57,23 @@ def test_an_error_in_a_worker_is_one_line_naming_the_dataset(tmp_path, capsys):
     assert lines == ["facemotion: load_dataset: dataset B1: recording x.c3d: frame 3 is "
                      "broken"]
     assert "Traceback" not in (tmp_path / "job.log").read_text()
+
+
+def _stamp_start(sm, log, prov):
+    import time
+
+    Path(sm.output.out).write_text(str(time.monotonic()))
+    time.sleep(0.4)
+
+
+def test_the_costliest_groups_start_first(tmp_path):
+    """With 2 workers and 4 one-dataset groups, the two costliest start together and the
+    other two only when a worker is free, whatever their order in the rule."""
+    subjects = {"A": "A", "B": "B", "C": "C", "D": "D"}
+    costs = {"A": 1, "B": 5, "C": 2, "D": 9}
+    run_per_dataset(_job(tmp_path, 2, subjects), _stamp_start,
+                    cost=lambda part: costs[part.params.subject])
+    start = {d: float((tmp_path / f"{d}.txt").read_text()) for d in subjects}
+    first, last = sorted(start, key=start.get)[:2], sorted(start, key=start.get)[2:]
+    assert sorted(first) == ["B", "D"] and sorted(last) == ["A", "C"]
+    assert min(start[d] for d in last) - max(start[d] for d in first) > 0.2

@@ -265,7 +265,7 @@ def _run_group_in_worker(i: int) -> None:
 
 
 def run_per_dataset(sm, main: Callable, across: Callable | None = None,
-                    group_by: Callable | None = None) -> None:
+                    group_by: Callable | None = None, cost: Callable | None = None) -> None:
     """Run ``main(part, log, prov)`` for each dataset of a rule over several datasets (see
     :func:`dataset_parts`): the script is written as for one dataset; an error names the
     dataset. Then ``across(sm, log)``, if given: the step that draws or tabulates all datasets
@@ -276,8 +276,11 @@ def run_per_dataset(sm, main: Callable, across: Callable | None = None,
     With more than one thread (the rule's ``threads``), the datasets are shared out among that
     many worker processes forked from this one (so they start with its modules imported), in
     groups that stay together in one worker and in order: consecutive datasets with the same
-    ``group_by(part)`` (e.g. a subject, whose takes its datasets share). Outputs are the same
-    either way: every dataset is computed on its own.
+    ``group_by(part)`` (e.g. a subject, whose takes its datasets share). The groups start
+    costliest first (the sum of ``cost(part)`` over a group's datasets, e.g. its number of
+    recordings; default 1 a dataset), so that a long group does not start last and run alone.
+    Outputs are the same either way: every dataset is computed on its own, and an error is
+    reported for the first failing dataset in dataset order.
     """
 
     def each(sm, log, _prov):
@@ -298,11 +301,14 @@ def run_per_dataset(sm, main: Callable, across: Callable | None = None,
             for h in log.handlers:
                 h.flush()
             _FORKED.update(main=main, groups=groups)
+            weight = cost or (lambda part: 1)
+            longest_first = sorted(range(len(groups)),
+                                   key=lambda i: -sum(weight(part) for _, part, _ in groups[i]))
             with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")
                                      ) as pool:
-                futures = [pool.submit(_run_group_in_worker, i) for i in range(len(groups))]
+                futures = {i: pool.submit(_run_group_in_worker, i) for i in longest_first}
                 try:
-                    for f in futures:  # the first error in dataset order
+                    for f in (futures[i] for i in range(len(groups))):  # first error in order
                         f.result()
                 except BrokenProcessPool as exc:
                     raise FacemotionError(f"a worker process of this job died ({exc}); with "

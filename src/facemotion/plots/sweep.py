@@ -6,6 +6,7 @@ import pandas as pd
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
+from matplotlib.transforms import offset_copy
 
 from facemotion.errors import InputError
 from facemotion.plots.style import LINESTYLES, MARKERS, plain_log_labels, require_columns, set_title
@@ -27,6 +28,7 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
     fig = Figure(figsize=(7.4, 4.8), layout="constrained")
     ax = fig.subplots()
     n_final = int(df["n_sentences"].max())
+    above = offset_copy(ax.transData, fig=fig, y=4, units="points")
     for j, o in enumerate(orders):
         g = df[df["order"] == o]
         final = g[g["n_sentences"] == g["n_sentences"].max()]["marker"].astype(str).iloc[0]
@@ -35,9 +37,10 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
                 ls=LINESTYLES[j % len(LINESTYLES)], marker=MARKERS[j % len(MARKERS)], ms=3.5,
                 label=f"{int(o)}: {final}")
         for n, m, r in zip(g["n_sentences"], g["marker"].astype(str), g["r_rms"], strict=True):
-            if m != final:
-                ax.annotate(m, (n, r), xytext=(0, 4), textcoords="offset points", fontsize=6,
-                            color=c, ha="center")
+            if m != final:  # 4 points above the point; plain texts (an annotation measures
+                # its point at every draw) left out of the layout, which they cannot change
+                ax.text(n, r, m, transform=above, fontsize=6, color=c, ha="center",
+                        in_layout=False)
     ax.set_xlabel("number of sentences in the displacement matrix")
     ns = sorted(int(n) for n in df["n_sentences"].unique())
     if len(ns) <= 12:  # whole numbers of sentences: tick each one
