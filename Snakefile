@@ -20,9 +20,9 @@ include: "workflow/rules/compare.smk"
 
 
 # Scheduling on few cores (rules' priority:): the virtual subjects and their loading first (every
-# analysis waits for them), then the longest analysis jobs (animation, region maps, held-out
-# evaluation, sentence sweep), so that the short ones and the lip model fill the other core
-# instead of leaving a long job to run alone at the end.
+# analysis waits for them), then the analysis jobs longest first (animation, region maps,
+# held-out evaluation, sentence sweep, ranking, subsets, the lip model, the redundancy check),
+# so that short jobs fill the other core at the end instead of a long one running alone.
 
 
 # Small aggregation rules (tables and figures across datasets, the summary, the manifest) run

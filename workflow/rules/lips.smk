@@ -11,6 +11,7 @@ rule simulate_lip_talker:
         "<results>/logs/simulate_lip_talker/{lip_subject}.log",
     benchmark:
         "<results>/benchmarks/simulate_lip_talker/{lip_subject}.tsv"
+    priority: 9
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -71,6 +72,7 @@ rule fit_lip_model:
         "<results>/logs/fit_lip_model/{lip_subject}.log",
     benchmark:
         "<results>/benchmarks/fit_lip_model/{lip_subject}.tsv"
+    priority: 8
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -94,6 +94,7 @@ rule find_redundant_markers:
         "<results>/logs/find_redundant_markers.log",
     benchmark:
         "<results>/benchmarks/find_redundant_markers/all.tsv"
+    priority: 5
     conda:
         "../envs/facemotion.yaml"
     threads: 1
