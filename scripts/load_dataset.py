@@ -50,4 +50,5 @@ def main(sm, log, prov):
 
 
 run_per_dataset(snakemake, main, group_by=lambda part: part.params.ds["subject"],  # noqa: F821
-                cost=lambda part: len(part.params.recordings))
+                cost=lambda part: len(part.params.recordings),
+                preload=("scipy.interpolate", "ezc3d"))  # gap filling, C3D reading

@@ -35,4 +35,5 @@ def main(sm, log, prov):
                    also=takes)
 
 
-run_per_dataset(snakemake, main, cost=lambda part: part.params.sim["n_sentences"])  # noqa: F821
+run_per_dataset(snakemake, main, cost=lambda part: part.params.sim["n_sentences"],  # noqa: F821
+                preload=("scipy.spatial",))  # the talkers' face geometry

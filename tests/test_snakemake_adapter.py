@@ -77,3 +77,20 @@ def test_the_costliest_groups_start_first(tmp_path):
     first, last = sorted(start, key=start.get)[:2], sorted(start, key=start.get)[2:]
     assert sorted(first) == ["B", "D"] and sorted(last) == ["A", "C"]
     assert min(start[d] for d in last) - max(start[d] for d in first) > 0.2
+
+
+def _record_preloaded(sm, log, prov):
+    import sys
+
+    Path(sm.output.out).write_text(f"{os.getpid()} {'tabnanny' in sys.modules}")
+
+
+def test_preloaded_modules_are_imported_once_before_the_workers_fork(tmp_path):
+    import sys
+
+    sys.modules.pop("tabnanny", None)
+    subjects = {"A": "A", "B": "B"}
+    run_per_dataset(_job(tmp_path, 2, subjects), _record_preloaded, preload=("tabnanny",))
+    seen = [(tmp_path / f"{d}.txt").read_text().split() for d in subjects]
+    assert all(pid != str(os.getpid()) and flag == "True" for pid, flag in seen)
+    assert "tabnanny" in sys.modules  # imported here, in the job, before forking

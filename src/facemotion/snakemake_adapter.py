@@ -265,7 +265,8 @@ def _run_group_in_worker(i: int) -> None:
 
 
 def run_per_dataset(sm, main: Callable, across: Callable | None = None,
-                    group_by: Callable | None = None, cost: Callable | None = None) -> None:
+                    group_by: Callable | None = None, cost: Callable | None = None,
+                    preload: Iterable[str] = ()) -> None:
     """Run ``main(part, log, prov)`` for each dataset of a rule over several datasets (see
     :func:`dataset_parts`): the script is written as for one dataset; an error names the
     dataset. Then ``across(sm, log)``, if given: the step that draws or tabulates all datasets
@@ -279,8 +280,10 @@ def run_per_dataset(sm, main: Callable, across: Callable | None = None,
     ``group_by(part)`` (e.g. a subject, whose takes its datasets share). The groups start
     costliest first (the sum of ``cost(part)`` over a group's datasets, e.g. its number of
     recordings; default 1 a dataset), so that a long group does not start last and run alone.
-    Outputs are the same either way: every dataset is computed on its own, and an error is
-    reported for the first failing dataset in dataset order.
+    Modules named in ``preload`` (heavy imports the package makes lazily, where it uses them)
+    are imported before the workers fork, once, instead of in every worker. Outputs are the
+    same either way: every dataset is computed on its own, and an error is reported for the
+    first failing dataset in dataset order.
     """
 
     def each(sm, log, _prov):
@@ -292,6 +295,7 @@ def run_per_dataset(sm, main: Callable, across: Callable | None = None,
         if workers <= 1:
             _run_group(main, parts, log)
         else:
+            import importlib
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
             from concurrent.futures.process import BrokenProcessPool
@@ -300,6 +304,8 @@ def run_per_dataset(sm, main: Callable, across: Callable | None = None,
                      len(groups), workers)
             for h in log.handlers:
                 h.flush()
+            for module in preload:
+                importlib.import_module(module)
             _FORKED.update(main=main, groups=groups)
             weight = cost or (lambda part: 1)
             longest_first = sorted(range(len(groups)),
