@@ -112,3 +112,22 @@ def test_errors():
         align_head(Recording(rec.labels, line, rec.rate, rec.source), HEAD)
     with pytest.raises(InputError, match="collinear"):
         align_head(rec, HEAD, reference=np.outer(np.arange(4), direction))
+
+
+def test_align_head_fits_each_frame_with_the_head_markers_it_has():
+    """Frames lacking different head markers (every pattern with >= 3 of 4) are each fitted
+    on the markers they have: the planted head coordinates come back, and each frame's
+    motion equals rigid_fit on its own present markers."""
+    rec, true, head = planted(F=60, noise=0.5, seed=2)
+    rng = np.random.default_rng(5)
+    lacking = rng.integers(-1, 4, size=60)  # -1: all four present
+    for f, j in enumerate(lacking):
+        if j >= 0:
+            rec.points[f, j] = np.nan
+    aligned, _ = align_head(rec, HEAD, reference=head)
+    assert len(set(lacking.tolist())) == 5
+    for f, j in enumerate(lacking):
+        cols = [c for c in range(4) if c != j]
+        R, t = rigid_fit(rec.points[f, cols], head[cols])
+        np.testing.assert_allclose(aligned.points[f, 4:], rec.points[f, 4:] @ R.T + t,
+                                   atol=1e-9)

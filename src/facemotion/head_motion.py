@@ -111,8 +111,13 @@ def align_head(rec: Recording, head_markers: list[str], reference=None
     t = np.empty((F, 3))
     residual = np.empty(F)
     # Frames with the same set of present head markers are fitted together in one batch.
-    patterns, inverse = np.unique(present, axis=0, return_inverse=True)
-    for k, pattern in enumerate(patterns):
+    # (a pattern as one integer, first marker the most significant bit: the same order as
+    # np.unique of the rows, without its sort of whole rows)
+    m = present.shape[1]
+    weights = np.array([1 << (m - 1 - j) for j in range(m)], dtype=object if m > 62 else np.int64)
+    codes, inverse = np.unique(present.astype(weights.dtype) @ weights, return_inverse=True)
+    for k, code in enumerate(codes):
+        pattern = np.array([(int(code) >> (m - 1 - j)) & 1 for j in range(m)], dtype=bool)
         frames = np.flatnonzero(inverse.ravel() == k)
         cols = np.flatnonzero(pattern)
         if cols.size < 3:
