@@ -244,12 +244,15 @@ def _run_group(main: Callable, group: list, log: logging.Logger) -> None:
     dataset."""
     for dataset, part, prov in group:
         log.info("dataset %s", dataset)
+        wall, cpu = time.perf_counter(), time.process_time()
         try:
             main(part, log, prov)
         except FacemotionError as exc:
             if dataset in str(exc):
                 raise
             raise type(exc)(f"dataset {dataset}: {exc}") from exc
+        log.info("dataset %s done in %.1f s (%.1f s CPU)", dataset,
+                 time.perf_counter() - wall, time.process_time() - cpu)
 
 
 _FORKED: dict = {}  # what forked workers run: set before the pool forks, never pickled
