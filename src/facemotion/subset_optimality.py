@@ -160,16 +160,24 @@ def subset_optimality(
     if isinstance(k_max, bool) or not isinstance(k_max, int | np.integer) or not 1 <= k_max < n:
         raise InputError(f"k_max: must be an integer in 1..{n - 1} (n markers), got {k_max!r}")
     G = A.T @ A
+    residuals: dict[frozenset, float] = {}  # greedy and optimal subsets often coincide
+
+    def residual(subset):
+        key = frozenset(subset)
+        if key not in residuals:
+            residuals[key] = projection_residual(A, subset)
+        return residuals[key]
+
     out = []
     for k in range(1, int(k_max) + 1):
         scale = np.sqrt(rows * (n - k))
         qr_set = [int(j) for j in ranking.order[:k]]
         qr_res = float(np.linalg.norm(ranking.R[k:, k:]))  # ||R22||_F
         gr_set = greedy_subset(G, k)
-        gr_res = projection_residual(A, gr_set)
+        gr_res = residual(gr_set)
         if math.comb(n, k) <= max_subsets:
             opt_set, _ = exhaustive_subset(G, k)
-            opt_res = projection_residual(A, opt_set)
+            opt_res = residual(opt_set)
             opt_lab = ",".join(labels[j] for j in opt_set)
         else:
             warnings.warn(
