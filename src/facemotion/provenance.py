@@ -244,8 +244,11 @@ def figure_bytes(fig, fmt: str, dpi: int = FIGURE_DPI) -> bytes:
     import matplotlib as mpl
 
     metadata: dict[str, Any]
+    extra: dict[str, Any] = {}
     if fmt == "png":
         metadata = {"Software": None}
+        # zlib level 3 instead of Pillow's 6: a third less CPU, files about 1 % larger
+        extra = {"pil_kwargs": {"compress_level": 3}}
     elif fmt == "pdf":
         metadata = {"Creator": None, "Producer": None, "CreationDate": None}
     elif fmt == "svg":
@@ -254,7 +257,7 @@ def figure_bytes(fig, fmt: str, dpi: int = FIGURE_DPI) -> bytes:
         raise InputError(f"unsupported figure format {fmt!r} (png, pdf or svg)")
     buf = io.BytesIO()
     with mpl.rc_context({"svg.hashsalt": "facemotion", "pdf.compression": 6}):
-        fig.savefig(buf, format=fmt, dpi=dpi, metadata=metadata)
+        fig.savefig(buf, format=fmt, dpi=dpi, metadata=metadata, **extra)
     return buf.getvalue()
 
 
