@@ -16,6 +16,7 @@ rule compare_with_papers:
         fig_meta="<results>/figures/paper_comparison.meta.json",
     log:
         "<results>/logs/compare_with_papers.log",
+    priority: 50
     conda:
         "../envs/facemotion.yaml"
     threads: 1
