@@ -213,18 +213,20 @@ def check_rate(rec: Recording, limits: Limits) -> None:
                          "seconds and the rate in Hz?")
 
 
-def _fit_rms(X: np.ndarray, Y: np.ndarray, proper: bool) -> np.ndarray:
-    """RMS residual (B,) of the best fit of X (B, m, 3) onto Y (m, 3) by rotation (or, with
-    ``proper`` False, rotation and reflection) and translation (Kabsch; Procrustes)."""
+def _fit_rms(X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """RMS residuals (B,) of the best fits of X (B, m, 3) onto Y (m, 3) by rotation and
+    translation, and by rotation, reflection and translation (Kabsch; Procrustes), from one
+    SVD of each cross-covariance."""
     Xc = X - X.mean(axis=1, keepdims=True)
     Yc = Y - Y.mean(axis=0)
     U, S, Vt = np.linalg.svd(np.einsum("bmi,mj->bij", Xc, Yc))
-    if proper:  # no reflection: flip the smallest singular value's sign when det < 0
-        d = np.sign(np.linalg.det(U @ Vt))
-        S = S.copy()
-        S[:, 2] *= np.where(d == 0, 1.0, d)
-    ss = np.sum(Xc ** 2, axis=(1, 2)) + np.sum(Yc ** 2) - 2 * S.sum(axis=1)
-    return np.sqrt(np.maximum(ss, 0.0) / X.shape[1])
+    # no reflection: flip the smallest singular value's sign when det(U V^T) < 0
+    d = np.sign(np.linalg.det(U @ Vt))
+    S_proper = S.copy()
+    S_proper[:, 2] *= np.where(d == 0, 1.0, d)
+    base = np.sum(Xc ** 2, axis=(1, 2)) + np.sum(Yc ** 2)
+    return tuple(np.sqrt(np.maximum(base - 2 * s.sum(axis=1), 0.0) / X.shape[1])
+                 for s in (S_proper, S))
 
 
 def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 200
@@ -250,8 +252,7 @@ def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 20
             continue
         frames = frames[np.linspace(0, frames.size - 1, min(frames.size, max_frames)).astype(int)]
         X = rec.points[frames][:, cols]
-        proper = float(np.min(_fit_rms(X, ref[cols], True)))
-        mirror = float(np.min(_fit_rms(X, ref[cols], False)))
+        proper, mirror = (float(np.min(r)) for r in _fit_rms(X, ref[cols]))
         if mirror < 0.5 * proper:
             raise InputError(f"{where}: the face is a mirror image of {recs[0].source}'s "
                              f"(it fits it to {mirror:.3g} mm RMS with a reflection, "
