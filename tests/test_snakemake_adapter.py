@@ -94,3 +94,18 @@ def test_preloaded_modules_are_imported_once_before_the_workers_fork(tmp_path):
     seen = [(tmp_path / f"{d}.txt").read_text().split() for d in subjects]
     assert all(pid != str(os.getpid()) and flag == "True" for pid, flag in seen)
     assert "tabnanny" in sys.modules  # imported here, in the job, before forking
+
+
+def _record_frozen(sm, log, prov):
+    import gc
+
+    Path(sm.output.out).write_text(str(gc.get_freeze_count()))
+
+
+def test_a_step_runs_with_the_imported_objects_out_of_the_collectors_scans(tmp_path):
+    import gc
+
+    gc.unfreeze()
+    run_per_dataset(_job(tmp_path, 1, {"A": "A"}), _record_frozen)
+    gc.unfreeze()
+    assert int((tmp_path / "A.txt").read_text()) > 10_000  # numpy, pandas, ... frozen
