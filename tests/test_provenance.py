@@ -121,3 +121,25 @@ def test_c3d_cut_by_the_file_size_limit_is_an_error(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.stdout.split() == ["True", f"{tmp_path}/big.c3d"], out.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_input_hashed_again_gives_its_current_digest(tmp_path):
+    """Job inputs are hashed once per process while unchanged; a file replaced or rewritten
+    since (other content, same size) gets its new digest."""
+    import os
+    import time
+
+    from facemotion.provenance import sha256_file
+
+    f = tmp_path / "A.npz"
+    f.write_bytes(b"a" * 1000)
+    assert sha256_file(f, job_input=True) == hashlib.sha256(b"a" * 1000).hexdigest()
+    assert sha256_file(f, job_input=True) == hashlib.sha256(b"a" * 1000).hexdigest()
+    tmp = tmp_path / "A.tmp"
+    tmp.write_bytes(b"b" * 1000)
+    os.replace(tmp, f)  # atomically replaced, as every output is written
+    assert sha256_file(f, job_input=True) == hashlib.sha256(b"b" * 1000).hexdigest()
+    time.sleep(0.02)
+    f.write_bytes(b"c" * 1000)  # rewritten in place
+    assert sha256_file(f, job_input=True) == hashlib.sha256(b"c" * 1000).hexdigest()
+    assert sha256_file(f) == hashlib.sha256(b"c" * 1000).hexdigest()
