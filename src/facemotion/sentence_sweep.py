@@ -127,11 +127,12 @@ def _tidy(piv, r_rms, rows_cum, labels):
         {
             "n_sentences": np.repeat(np.arange(1, S + 1), m),
             "order": np.tile(np.arange(1, m + 1), S),
-            "marker": [labels[j] for j in piv.ravel()],
+            "marker": np.asarray(labels, dtype=object)[piv.ravel()],
             "r_rms": r_rms.ravel(),
             "rows": np.repeat(rows_cum, m),
         },
         columns=SWEEP_COLUMNS,
+        copy=False,
     )
 
 
