@@ -99,6 +99,7 @@ def exhaustive_subset(G: np.ndarray, k: int, batch: int = 4096) -> tuple[list[in
         # prefixes T (k-2 markers) with max(T) == m; pairs drawn from m+1..n-1
         prefixes = [(*t, m) for t in itertools.combinations(range(m), k - 3)] if k > 2 else [()]
         sub = np.arange(m + 1, n)
+        iu, ju = np.triu_indices(sub.size, 1)  # the pairs p < q of sub
         for b0 in range(0, len(prefixes), batch):
             P = np.array(prefixes[b0 : b0 + batch], dtype=np.intp)
             if k == 2:
@@ -110,7 +111,7 @@ def exhaustive_subset(G: np.ndarray, k: int, batch: int = 4096) -> tuple[list[in
                 except np.linalg.LinAlgError:
                     L = _safe_cholesky(GTT)
                 W = np.linalg.solve(L, G[P, :])  # (nb, k-2, n): L^-1 G_T:
-                Gs = G[sub] - np.einsum("bti,btj->bij", W[:, :, sub], W)  # G'[sub, :]
+                Gs = G[sub] - np.matmul(W[:, :, sub].transpose(0, 2, 1), W)  # G'[sub, :]
                 explained_T = np.einsum("bti,bti->b", W, W)  # ||P_T A||_F^2 = ||L^-1 G_T:||_F^2
             else:
                 Gs = np.broadcast_to(G[sub], (1, sub.size, n))
@@ -119,19 +120,22 @@ def exhaustive_subset(G: np.ndarray, k: int, batch: int = 4096) -> tuple[list[in
             Gss = Gs[:, :, sub]
             dd = np.diagonal(Gss, axis1=1, axis2=2)
             hh = np.diagonal(Hs, axis1=1, axis2=2)
-            det = dd[:, :, None] * dd[:, None, :] - Gss * Gss
-            num = dd[:, None, :] * hh[:, :, None] + dd[:, :, None] * hh[:, None, :]
-            num = num - 2.0 * Gss * Hs
-            ok = det > 1e-10 * dd[:, :, None] * dd[:, None, :]
-            ok &= np.triu(np.ones((sub.size, sub.size), dtype=bool), 1)[None]
+            # each pair (p, q), p < q, once: explained by {p, q} in the residual G'
+            #   gain = (d_q h_p + d_p h_q - 2 G'_pq H'_pq) / (d_p d_q - G'_pq^2)
+            dp, dq, hp, hq = dd[:, iu], dd[:, ju], hh[:, iu], hh[:, ju]
+            gpq, hpq = Gss[:, iu, ju], Hs[:, iu, ju]
+            dpq = dp * dq
+            det = dpq - gpq * gpq
+            num = dp * hq + dq * hp - 2.0 * gpq * hpq
+            ok = det > 1e-10 * dpq
             with np.errstate(divide="ignore", invalid="ignore"):
                 gain = np.where(ok, num / np.where(ok, det, 1.0), -np.inf)
-            total = explained_T[:, None, None] + gain
+            total = explained_T[:, None] + gain
             flat = int(np.argmax(total))
             if total.flat[flat] > best:
                 best = float(total.flat[flat])
-                bb, pp, qq = np.unravel_index(flat, total.shape)
-                best_set = [*P[bb].tolist(), int(sub[pp]), int(sub[qq])]
+                bb, pair = np.unravel_index(flat, total.shape)
+                best_set = [*P[bb].tolist(), int(sub[iu[pair]]), int(sub[ju[pair]])]
     return sorted(best_set), 1.0 - best
 
 
