@@ -59,11 +59,13 @@ def sentence_rows(row_sentence, rows: int) -> tuple[np.ndarray, list[np.ndarray]
     return ids[appearance], [groups[i] for i in appearance]
 
 
-def cumulative(G: np.ndarray, axis: int = 0) -> np.ndarray:
-    """Running sums G_1, G_1 + G_2, ... along ``axis`` (np.cumsum is slow on a leading axis)."""
+def cumulative(G: np.ndarray, axis: int = 0, overwrite: bool = False) -> np.ndarray:
+    """Running sums G_1, G_1 + G_2, ... along ``axis`` (np.cumsum is slow on a leading axis);
+    with ``overwrite``, in G itself (a temporary array: no second copy to allocate and fill)."""
     G = np.moveaxis(G, axis, 0)
-    out = np.empty_like(G)
-    out[0] = G[0]
+    out = G if overwrite else np.empty_like(G)
+    if not overwrite:
+        out[0] = G[0]
     for s in range(1, G.shape[0]):
         np.add(out[s - 1], G[s], out=out[s])
     return np.moveaxis(out, 0, axis)
@@ -273,7 +275,7 @@ def stability(
     for start in range(0, perms.shape[0], chunk):
         P = perms[start : start + chunk]
         c = P.shape[0]
-        Gcum = cumulative(Gs[P], axis=1).reshape(c * S, n, n)  # G after 1..S sentences
+        Gcum = cumulative(Gs[P], axis=1, overwrite=True).reshape(c * S, n, n)  # 1..S sentences
         rows_cum = np.cumsum(rows[P], axis=1).reshape(c * S)
         piv, rr, _ = _gram_pivots(Gcum, rows_cum, steps)
         piv = piv.reshape(c, S, steps)
