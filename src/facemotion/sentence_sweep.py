@@ -15,8 +15,6 @@ data; instead each sentence's contribution is folded into an n x n summary once:
 Sentence order is the order of first appearance in ``row_sentence``.
 """
 
-from __future__ import annotations
-
 from collections.abc import Sequence
 from typing import NamedTuple
 
