@@ -21,9 +21,9 @@ include: "workflow/rules/compare.smk"
 
 # Scheduling on few cores (rules' priority:): the virtual subjects and their loading first (every
 # analysis waits for them), then the analysis jobs longest first (animation, region maps,
-# held-out evaluation, sentence sweep, ranking, the lip model), then what the comparison with
-# the papers does not need (subsets, the redundancy check), so that the comparison (as soon as
-# it can start) and these short jobs share the cores at the end.
+# held-out evaluation, sentence sweep, subsets, ranking, the lip model, the redundancy check),
+# and the comparison with the papers as soon as its inputs exist, so that short jobs share the
+# cores at the end instead of a long one running alone.
 
 
 # Small aggregation rules (tables and figures across datasets, the summary, the manifest) run

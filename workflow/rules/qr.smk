@@ -184,7 +184,7 @@ rule compare_subsets:
         "<results>/logs/compare_subsets.log",
     benchmark:
         "<results>/benchmarks/compare_subsets/all.tsv"
-    priority: 7
+    priority: 13
     conda:
         "../envs/facemotion.yaml"
     threads: 1
