@@ -116,9 +116,9 @@ def align_head(rec: Recording, head_markers: list[str], reference=None
     m = present.shape[1]
     weights = np.array([1 << (m - 1 - j) for j in range(m)], dtype=object if m > 62 else np.int64)
     codes, inverse = np.unique(present.astype(weights.dtype) @ weights, return_inverse=True)
-    for k, code in enumerate(codes):
-        pattern = np.array([(int(code) >> (m - 1 - j)) & 1 for j in range(m)], dtype=bool)
+    for k in range(codes.size):
         frames = np.flatnonzero(inverse.ravel() == k)
+        pattern = present[frames[0]]  # the frames of group k share it
         cols = np.flatnonzero(pattern)
         if cols.size < 3:
             f = int(frames[0])
