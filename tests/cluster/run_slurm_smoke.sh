@@ -60,7 +60,7 @@ command -v snakemake >/dev/null || skip "snakemake not found (run 'make venv' fi
 PYTHON="$(dirname "$(command -v snakemake)")/python"
 [[ -x $PYTHON ]] || PYTHON=python3
 "$PYTHON" -c 'import snakemake_executor_plugin_slurm' 2>/dev/null ||
-  skip "snakemake-executor-plugin-slurm is not installed in $(command -v snakemake)"
+  skip "snakemake-executor-plugin-slurm is not installed in $(command -v snakemake) (make cluster)"
 
 # ---------------------------------------------------------------------------------------------
 # 1. Debian's SLURM and munge, if missing.
