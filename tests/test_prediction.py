@@ -62,16 +62,19 @@ def test_error_curve_equals_per_k_solves():
     np.testing.assert_allclose(shuffled[num].to_numpy(), fast[num].to_numpy())
 
 
-def test_error_curve_by_hand_for_one_k():
-    A, B, labels = data(n=6)
+@pytest.mark.parametrize("k", [2, 3])  # F (n - k) even, then odd: both medians
+def test_error_curve_by_hand_for_one_k(k):
+    A, B, labels = data(F=1503, n=6)  # 501 held-out frames
     rk = rank_markers(A, labels)
-    k = 2
     m, s = rk.order[:k], rk.order[k:]
     X = np.linalg.solve(A[:, m].T @ A[:, m], A[:, m].T @ A[:, s])
     E = (B[:, s] - B[:, m] @ X).reshape(-1, 3, len(s))
     dist = np.sqrt((E**2).sum(axis=1))
     row = error_curve(rk, B, labels).set_index("k").loc[k]
+    assert (dist.size % 2 == 0) == (k == 2)
     assert row.mean_abs_error_mm == pytest.approx(dist.mean())
+    assert row.median_abs_error_mm == pytest.approx(np.median(dist))
+    assert row.max_abs_error_mm == pytest.approx(dist.max())
     assert row.rms_error_mm == pytest.approx(np.sqrt(np.mean(E**2)))
     mag = np.sqrt((B[:, s].reshape(-1, 3, len(s)) ** 2).sum(axis=1))
     assert row.rel_error_pooled == pytest.approx(dist.sum() / mag.sum())

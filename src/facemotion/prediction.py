@@ -111,25 +111,47 @@ def _align(ranking: MarkerRanking, B, labels, name="B") -> np.ndarray:
     return B[:, [pos[lab] for lab in ranking.labels_in_order]]
 
 
-def _stats(E3: np.ndarray, mag: np.ndarray, k: int, main: str) -> dict:
-    """Error measures of residuals E3 (F, 3, n_sec); mag (n_sec,) = each secondary marker's
-    sum over frames of its measured 3-D displacement magnitude."""
-    dist = np.sqrt(np.einsum("fcj,fcj->fj", E3, E3))  # 3-D distance per frame and marker
+def _stats(D2: np.ndarray, mag: np.ndarray, k: int, main: str) -> dict:
+    """Error measures from D2 (n_sec, F): each secondary marker's squared 3-D residual distance
+    in every held-out frame (marker-major, C-contiguous; overwritten); mag (n_sec,) = each
+    secondary marker's sum over frames of its measured 3-D displacement magnitude."""
+    sq_sum = float(D2.sum())
+    dist = np.sqrt(D2, out=D2)  # 3-D distance per marker and frame
+    count = dist.size
+    per_marker = dist.sum(axis=1)
+    total = float(per_marker.sum())
+    dist_max = float(dist.max())
     mag = np.asarray(mag, dtype=float)
     mag_sum = float(mag.sum())
     with np.errstate(divide="ignore", invalid="ignore"):
-        per_marker = dist.sum(axis=0) / mag    # a marker that never moves: inf (or nan)
+        per_marker /= mag    # a marker that never moves: inf (or nan)
     return {
         "k": k,
-        "mean_abs_error_mm": float(dist.mean()),
-        "rms_error_mm": float(np.sqrt(np.mean(dist * dist) / 3.0)),
-        "median_abs_error_mm": float(np.median(dist)),
-        "max_abs_error_mm": float(dist.max()),
+        "mean_abs_error_mm": total / count,
+        "rms_error_mm": float(np.sqrt(sq_sum / count / 3.0)),
+        "median_abs_error_mm": _median_inplace(dist.reshape(-1)),
+        "max_abs_error_mm": dist_max,
         "rel_error_per_marker": float(per_marker.mean()),
-        "rel_error_pooled": float(dist.sum() / mag_sum) if mag_sum > 0 else float("nan"),
+        "rel_error_pooled": total / mag_sum if mag_sum > 0 else float("nan"),
         "pivot_marker": main.rsplit(",", 1)[-1],  # the main marker added at this k
         "main_markers": main,
     }
+
+
+def _median_inplace(x: np.ndarray) -> float:
+    """np.median of a finite 1-D array (the mean of the two middle values when the length is
+    even), partitioning ``x`` in place instead of a copy."""
+    h = x.size // 2
+    if x.size % 2:
+        x.partition(h)
+        return float(x[h])
+    x.partition([h - 1, h])
+    return float((x[h - 1] + x[h]) / 2.0)
+
+
+def _sq_dist(E: np.ndarray) -> np.ndarray:
+    """(n_sec, 3, F) residuals -> (n_sec, F) squared 3-D distances."""
+    return np.einsum("jcf,jcf->jf", E, E)
 
 
 def _zero_row(n: int, lab: list[str]) -> dict:
@@ -173,14 +195,19 @@ def error_curve(train_ranking: MarkerRanking, B, labels: Sequence[str],
     R = rk.R
     # C[:, :rank] = B_P[:, :rank] R11^-1   (solve R11^T C^T = B_P^T)
     C = scipy.linalg.solve_triangular(R[:rank, :rank], Bp[:, :rank].T, trans="T").T
-    E3 = Bp.reshape(F, 3, n).copy()  # residuals E^(k), frame x axis x marker
-    C3 = C.reshape(F, 3, rank)
-    mag = np.sqrt(np.einsum("fcj,fcj->fj", Bp.reshape(F, 3, n), Bp.reshape(F, 3, n))).sum(0)
+    # residuals E^(k) marker-major, E[j] = marker j's (3, frames): the secondary markers j >= k
+    # are one contiguous block for each update and each k's measures
+    E = np.ascontiguousarray(Bp.reshape(F, 3, n).transpose(2, 1, 0))
+    Cm = np.ascontiguousarray(C.reshape(F, 3, rank).transpose(2, 1, 0))
+    mag = np.sqrt(_sq_dist(E)).sum(axis=1)
+    step = np.empty_like(E)
     out = []
     for k in range(1, rank + 1):
         # E^(k) = E^(k-1) - C[:, k-1] R[k-1, :]   (rank-one update, secondary columns only)
-        E3[:, :, k:] -= C3[:, :, k - 1, None] * R[k - 1, k:]
-        out.append(_stats(E3[:, :, k:], mag[k:], k, ",".join(lab[:k])))
+        Es = E[k:]
+        np.subtract(Es, np.multiply(R[k - 1, k:, None, None], Cm[k - 1], out=step[k:]),
+                    out=Es)
+        out.append(_stats(_sq_dist(Es), mag[k:], k, ",".join(lab[:k])))
     out.append(_zero_row(n, lab))
     return pd.DataFrame(out, columns=CURVE_COLUMNS)
 
@@ -238,7 +265,8 @@ def error_curve_naive(
             continue
         Bs = Bp[:, k:].reshape(F, 3, n - k)
         mag = np.sqrt((Bs**2).sum(axis=1)).sum(axis=0)
-        out.append(_stats(E.reshape(F, 3, n - k), mag, k, ",".join(lab[:k])))
+        D2 = np.ascontiguousarray((E.reshape(F, 3, n - k) ** 2).sum(axis=1).T)
+        out.append(_stats(D2, mag, k, ",".join(lab[:k])))
     if measures == "rms":
         out.append({"k": n, "rms_error_mm": 0.0, "main_markers": ",".join(lab)})
         return pd.DataFrame(out, columns=["k", "rms_error_mm", "main_markers"])
