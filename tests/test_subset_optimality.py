@@ -68,3 +68,17 @@ def test_cap_and_bad_k():
     assert df.optimal_subset[1] == "not computed" and np.isnan(df.optimal_residual_rms_mm[1])
     with pytest.raises(InputError, match="k_max"):
         subset_optimality(A, labels, k_max=12)
+
+
+def test_projection_residual_equals_least_squares_also_for_a_dependent_subset():
+    """The QR route against lstsq's residual; a subset holding a marker and its exact copy
+    spans one direction less, which the QR of the subset alone would not see."""
+    A, _ = data()
+    A = np.column_stack([A, A[:, 3]])  # column 10 = an exact copy of 3
+    for S in ([0], [2, 5, 7], [1, 3, 4, 6, 8], [3, 10], [0, 3, 10]):
+        X = np.linalg.lstsq(A[:, S], A, rcond=None)[0]
+        ref = np.linalg.norm(A - A[:, S] @ X)
+        assert projection_residual(A, S) == pytest.approx(ref, rel=1e-12)
+    # the copy adds nothing: same residual as without it
+    assert projection_residual(A, [0, 3, 10]) == pytest.approx(projection_residual(A, [0, 3]),
+                                                               rel=1e-12)

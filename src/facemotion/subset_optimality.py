@@ -52,10 +52,20 @@ NOT_COMPUTED = "not computed"
 
 
 def projection_residual(A: np.ndarray, subset: Sequence[int]) -> float:
-    """||A - A_S A_S^+ A||_F by least squares (reference)."""
+    """||A - A_S A_S^+ A||_F, A's part orthogonal to the span of the subset's columns.
+
+    From a Householder QR of A_S = Q R (backward stable, like least squares): the residual is
+    A - Q (Q^T A).  When A_S is numerically rank-deficient (its singular values, those of R,
+    below least squares' default cutoff eps max(m, k) s_max), by least squares (SVD), which
+    drops the dependent directions."""
     S = list(subset)
-    X = np.linalg.lstsq(A[:, S], A, rcond=None)[0]
-    return float(np.linalg.norm(A - A[:, S] @ X))
+    As = A[:, S]
+    Q, R = np.linalg.qr(As)
+    s = np.linalg.svd(R, compute_uv=False)
+    if s.size and s[-1] > np.finfo(float).eps * max(As.shape) * s[0]:
+        return float(np.linalg.norm(A - Q @ (Q.T @ A)))
+    X = np.linalg.lstsq(As, A, rcond=None)[0]
+    return float(np.linalg.norm(A - As @ X))
 
 
 def _schur(G, T):
