@@ -21,7 +21,8 @@ import sys
 from pathlib import Path
 
 DONE = re.compile(r"done: ([\d.]+) s CPU, of which ([\d.]+) s start-up"
-                  r"(?:.*?and ([\d.]+) s CPU in child processes)?")
+                  r"(?:.*?and ([\d.]+) s CPU in child processes)?"
+                  r"(?:; peak memory ([\d.]+) MB \(largest child process ([\d.]+) MB\))?")
 
 
 def read_benchmarks(root: Path) -> dict[str, list[float]]:
@@ -35,9 +36,10 @@ def read_benchmarks(root: Path) -> dict[str, list[float]]:
     return rules
 
 
-def read_job_cpu(root: Path) -> dict[str, list[tuple[float, float]]]:
-    """rule -> (CPU s, start-up CPU s) of each of its jobs, from the jobs' logs (CPU s: the
-    job's process and its child processes)."""
+def read_job_cpu(root: Path) -> dict[str, list[tuple[float, float, float]]]:
+    """rule -> (CPU s, start-up CPU s, peak memory MB) of each of its jobs, from the jobs'
+    logs (CPU s: the job's process and its child processes; peak memory: the larger of the
+    job's process and its largest child process, NaN in logs without it)."""
     out: dict[str, list[tuple[float, float]]] = {}
     logs = Path(root) / "logs"
     for f in sorted(logs.rglob("*.log")):
@@ -46,32 +48,38 @@ def read_job_cpu(root: Path) -> dict[str, list[tuple[float, float]]]:
             continue
         rel = f.relative_to(logs)
         rule = rel.parts[0] if len(rel.parts) > 1 else f.stem
-        cpu, startup, children = found[-1]
+        cpu, startup, children, own_mb, child_mb = found[-1]
+        peak = max(float(own_mb), float(child_mb)) if own_mb else float("nan")
         # the job's own CPU and its children's (worker processes, the MP4 encoder)
-        out.setdefault(rule, []).append((float(cpu) + float(children or 0), float(startup)))
+        out.setdefault(rule, []).append((float(cpu) + float(children or 0), float(startup),
+                                         peak))
     return out
 
 
-def table(rules: dict[str, list[float]], cpu: dict[str, list[tuple[float, float]]]) -> str:
+def table(rules: dict[str, list[float]],
+          cpu: dict[str, list[tuple[float, float, float]]]) -> str:
     def fmt(x):
         return "" if math.isnan(x) else f"{x:.1f}"
 
     lines = ["| rule | jobs | wall s (sum) | wall s (mean) | wall s (max) | CPU s (sum, with "
-             "child processes) | of which start-up |", "|---|---:|---:|---:|---:|---:|---:|"]
+             "child processes) | of which start-up | peak memory MB (max) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|"]
     tot_jobs = tot_wall = tot_cpu = tot_start = 0.0
     for r in sorted(rules, key=lambda r: -sum(rules[r])):
         walls = rules[r]
         c = cpu.get(r, [])
-        cs = sum(x for x, _ in c) if c else float("nan")
-        st = sum(y for _, y in c) if c else float("nan")
+        cs = sum(x for x, _, _ in c) if c else float("nan")
+        st = sum(y for _, y, _ in c) if c else float("nan")
+        mem = max((m for _, _, m in c), default=float("nan"))
         lines.append(f"| `{r}` | {len(walls)} | {sum(walls):.1f} | {sum(walls) / len(walls):.2f} "
-                     f"| {max(walls):.2f} | {fmt(cs)} | {fmt(st)} |")
+                     f"| {max(walls):.2f} | {fmt(cs)} | {fmt(st)} | "
+                     f"{'' if math.isnan(mem) else f'{mem:.0f}'} |")
         tot_jobs += len(walls)
         tot_wall += sum(walls)
         tot_cpu += 0 if math.isnan(cs) else cs
         tot_start += 0 if math.isnan(st) else st
     lines.append(f"| **all** | {int(tot_jobs)} | {tot_wall:.1f} | | | {tot_cpu:.1f} "
-                 f"| {tot_start:.1f} |")
+                 f"| {tot_start:.1f} | |")
     return "\n".join(lines)
 
 

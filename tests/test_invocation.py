@@ -189,3 +189,18 @@ def test_every_shipped_config_dry_runs_with_the_shared_data(tmp_path, name):
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-3000:]
     assert "Job stats" in out
+
+
+def test_benchmark_sampling_interval_is_set_in_this_snakemake():
+    """If Snakemake renames its sampling interval, this fails (the study would sample twice a
+    second again, about 4 s of CPU)."""
+    import snakemake.benchmark as bench
+
+    from facemotion.invocation import sample_benchmarks_every
+
+    before = bench.BENCHMARK_INTERVAL_SHORT
+    try:
+        assert sample_benchmarks_every(5.0)
+        assert bench.BENCHMARK_INTERVAL_SHORT == 5.0
+    finally:
+        bench.BENCHMARK_INTERVAL_SHORT = before

@@ -109,3 +109,28 @@ def test_a_step_runs_with_the_imported_objects_out_of_the_collectors_scans(tmp_p
     run_per_dataset(_job(tmp_path, 1, {"A": "A"}), _record_frozen)
     gc.unfreeze()
     assert int((tmp_path / "A.txt").read_text()) > 10_000  # numpy, pandas, ... frozen
+
+
+def _allocate(sm, log, prov):
+    import numpy as np
+
+    block = np.ones(40_000_000 // 8)  # 40 MB, touched
+    Path(sm.output.out).write_text(str(block.sum()))
+
+
+def test_the_log_ends_with_cpu_and_peak_memory(tmp_path):
+    """The job's last log line: its CPU and its exact peak memory (getrusage), which the
+    per-rule table reads (benchmarks/rule_times.py)."""
+    import importlib.util
+    import re
+
+    run_per_dataset(_job(tmp_path, 1, {"A": "A"}), _allocate)
+    last = (tmp_path / "job.log").read_text().strip().splitlines()[-1]
+    m = re.search(r"peak memory (\d+) MB \(largest child process (\d+) MB\)", last)
+    assert m and int(m.group(1)) >= 40, last
+    spec = importlib.util.spec_from_file_location(
+        "rule_times", Path(__file__).parents[1] / "benchmarks" / "rule_times.py")
+    rule_times = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rule_times)
+    cpu, startup, children, own_mb, child_mb = rule_times.DONE.findall(last)[-1]
+    assert float(own_mb) == int(m.group(1)) and float(cpu) > 0

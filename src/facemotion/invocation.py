@@ -171,3 +171,24 @@ def same_study_command(argv: list[str], *extra: str) -> str:
             continue
         i += 1
     return shlex.join(keep + list(extra))
+
+
+def sample_benchmarks_every(seconds: float) -> bool:
+    """Snakemake's ``benchmark:`` sampling every ``seconds`` instead of twice a second.
+
+    For a job's first 30 samples, Snakemake (``snakemake.benchmark``) samples its processes
+    every 0.5 s, and each sample reads every process's memory map (psutil's
+    ``memory_full_info``: about 8 ms for a Python process with numpy and matplotlib loaded).
+    Over the default study that was about 4 s of CPU in Snakemake's own process, beside the
+    jobs. Only the benchmark files' memory columns (maxima over the samples) depend on the
+    sampling, not their wall time; each job logs its exact peak memory instead
+    (``run_step``). Returns False, and changes nothing, if this Snakemake has no such
+    setting."""
+    try:
+        import snakemake.benchmark as bench
+    except ImportError:
+        return False
+    if not isinstance(getattr(bench, "BENCHMARK_INTERVAL_SHORT", None), (int, float)):
+        return False
+    bench.BENCHMARK_INTERVAL_SHORT = float(seconds)
+    return True

@@ -219,9 +219,13 @@ def run_step(sm, main: Callable) -> None:
     import resource
 
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)  # worker processes, the MP4 encoder
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    # peak resident memory, exact (the kernel's high-water mark; ru_maxrss is in KiB on Linux)
     log.info("done: %.2f s CPU, of which %.2f s start-up before the step (modules it imports "
-             "while running are counted in the step), and %.2f s CPU in child processes",
-             time.process_time(), started, kids.ru_utime + kids.ru_stime)
+             "while running are counted in the step), and %.2f s CPU in child processes; "
+             "peak memory %.0f MB (largest child process %.0f MB)",
+             time.process_time(), started, kids.ru_utime + kids.ru_stime,
+             own.ru_maxrss * 1024 / 1e6, kids.ru_maxrss * 1024 / 1e6)
 
 
 def _fail(log: logging.Logger, msg: str) -> None:
