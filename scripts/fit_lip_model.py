@@ -1,4 +1,7 @@
-"""Fit the lip model (Basu & Pentland 1997) and reconstruct from partial views (Table 1)."""
+"""Fit the lip model (Basu & Pentland 1997) and reconstruct from partial views (Table 1).
+
+One job for all lip subjects (run_per_dataset: each subject on its own, as if in a job of its
+own, with the wildcard lip_subject)."""
 
 import numpy as np
 
@@ -8,7 +11,7 @@ from facemotion.lips.study import grid_lip_study, run_virtual
 from facemotion.lips.virtual import make_virtual_talker
 from facemotion.provenance import save_figure, write_table
 from facemotion.readers import read_trc
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.snakemake_adapter import figure_paths, run_per_dataset
 from facemotion.subjects import parse_sentences
 
 
@@ -29,7 +32,7 @@ def main(sm, log, prov):
               "model_extent": None if extent is None else tuple(extent),
               "noise_grid": tuple(p["noise_var_sweep"])}
     if spec["source"] == "grid":
-        result = grid_lip_study(recordings, sm.input.mesh, normalisation=p["normalisation"],
+        result = grid_lip_study(recordings, sm.input.mesh[0], normalisation=p["normalisation"],
                                 **common)
         points = result.heldout_landmarks
         name = "GRID talker"
@@ -68,4 +71,4 @@ def main(sm, log, prov):
     write_table(points, sm.output.heldout, "summary", prov)
 
 
-run_step(snakemake, main)  # noqa: F821
+run_per_dataset(snakemake, main)  # noqa: F821

@@ -128,14 +128,18 @@ def dataset_parts(sm):
     lists them all, for change detection). Yields ``(dataset, part, prov)``: ``part`` has
     ``input``, ``output``, ``params`` and ``wildcards`` as a job of that dataset alone would
     (``more`` and ``*_more``, a figure's other formats, are split into equal lists; the job's
-    own wildcards, e.g. ``k``, are kept), ``prov`` that dataset's provenance (its inputs only;
+    own wildcards, e.g. ``k``, are kept; ``params.part_wildcard`` names the dataset's wildcard,
+    default ``dataset``), ``prov`` that dataset's provenance (its inputs only;
     its params; its wildcards), so the sidecars are those of a per-dataset job. One job
     instead of one per dataset: each job costs ~1 s of start-up.
     """
     datasets = list(sm.params.datasets)
     n = len(datasets)
+    # the wildcard a job of one part alone would have: "dataset", or e.g. "lip_subject"
+    name = sm.params.part_wildcard if "part_wildcard" in sm.params.keys() else "dataset"
     common = {k: v for k, v in sm.params.items()
-              if k not in ("datasets", "per_dataset") and not k.startswith(ACROSS)}
+              if k not in ("datasets", "per_dataset", "part_wildcard")
+              and not k.startswith(ACROSS)}
     per = sm.params.per_dataset if "per_dataset" in sm.params.keys() else {}
 
     def pick(files, i, own=None):
@@ -164,7 +168,7 @@ def dataset_parts(sm):
         mine = dict(per.get(d, {}))
         own_inputs = mine.pop("inputs", {})
         params = {**common, **mine}
-        wildcards = {"dataset": d, **{k: v for k, v in job_wildcards.items() if k != "dataset"}}
+        wildcards = {name: d, **{k: v for k, v in job_wildcards.items() if k != name}}
         part = SimpleNamespace(input=_Part(pick(sm.input, i, own_inputs)),
                                output=_Part(pick(sm.output, i)), params=_Part(params),
                                wildcards=_Part(wildcards), rule=sm.rule, log=sm.log)
@@ -252,15 +256,17 @@ def _run_group(main: Callable, group: list, log: logging.Logger) -> None:
     """``main`` for each (dataset, part, prov) of ``group``, in order; an error names the
     dataset."""
     for dataset, part, prov in group:
-        log.info("dataset %s", dataset)
+        # "dataset", or what the part's wildcard names (e.g. "lip subject")
+        kind = next(iter(part.wildcards.keys())).replace("_", " ")
+        log.info("%s %s", kind, dataset)
         wall, cpu = time.perf_counter(), time.process_time()
         try:
             main(part, log, prov)
         except FacemotionError as exc:
             if dataset in str(exc):
                 raise
-            raise type(exc)(f"dataset {dataset}: {exc}") from exc
-        log.info("dataset %s done in %.1f s (%.1f s CPU)", dataset,
+            raise type(exc)(f"{kind} {dataset}: {exc}") from exc
+        log.info("%s %s done in %.1f s (%.1f s CPU)", kind, dataset,
                  time.perf_counter() - wall, time.process_time() - cpu)
 
 

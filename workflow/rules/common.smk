@@ -316,6 +316,24 @@ def lip_params(wildcards):
     }
 
 
+LIP_SUBJECTS = list(config["lips"]["subjects"])  # after the skipped ones are dropped
+
+
+def lip_wc(ls):
+    """The wildcards of a job of lip subject ``ls`` alone."""
+    return SimpleNamespace(lip_subject=ls)
+
+
+def lip_inputs_lists(ls):
+    """A lip subject's own inputs, as lists (run_per_dataset's per-dataset inputs)."""
+    inp = lip_inputs(lip_wc(ls))
+    return {
+        # params are not paths to Snakemake: <results> resolved here
+        "tracks": [workflow.pathvars.apply(t) for t in inp["tracks"]],
+        "mesh": [inp["mesh"]] if "mesh" in inp else [],
+    }
+
+
 def lip_inputs(wildcards):
     spec = config["lips"]["subjects"][wildcards.lip_subject]
     if spec["source"] == "grid":
