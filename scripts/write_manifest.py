@@ -1,17 +1,17 @@
 """results/<study>/manifest.tsv: every output of the current workflow with its checksum, schema
 version and sidecar (starting from the workflow's targets, not from what lies in results/)."""
 
-from facemotion.manifest import build_manifest
-from facemotion.provenance import atomic_write_bytes, table_bytes
+from facemotion.manifest import manifest_rows, manifest_tsv
+from facemotion.provenance import atomic_write_bytes
 from facemotion.snakemake_adapter import run_step
 
 
 def main(sm, log, prov):
     root = sm.params.root
-    table = build_manifest(root, targets=list(sm.input.outputs))
-    log.info("%d outputs in the manifest", len(table))
+    rows = manifest_rows(root, targets=list(sm.input.outputs))
+    log.info("%d outputs in the manifest", len(rows))
     # The manifest is the index of the sidecars, so it has none of its own.
-    atomic_write_bytes(sm.output.manifest, table_bytes(table))
+    atomic_write_bytes(sm.output.manifest, manifest_tsv(rows))
 
 
 run_step(snakemake, main)  # noqa: F821

@@ -80,6 +80,11 @@ def test_manifest_lists_the_current_jobs_and_detects_tampering(tmp_path, monkeyp
     assert list(m["path"]) == sorted([a, b, fig])
     assert m.set_index("path").loc[a, "schema_id"] == "facemotion/r_values"
     assert m.set_index("path").loc[a, "sidecar"] == "results/x/qr/r_values.meta.json"
+    # the manifest job writes its TSV without pandas: the same bytes as pandas' table
+    from facemotion.manifest import manifest_rows, manifest_tsv
+    from facemotion.provenance import table_bytes
+
+    assert manifest_tsv(manifest_rows("results", targets=[b])) == table_bytes(m)
     with open(a, "a") as f:
         f.write("tampered\n")
     with pytest.raises(InputError, match="checksum differs"):
@@ -164,3 +169,15 @@ def test_marker_subset_axis_selects_columns():
     assert row["first_pivots"] == ",".join(ref.labels_in_order)
     with pytest.raises(InputError, match="mX"):
         train.select_markers(["m1", "mX"])
+
+
+def test_the_manifest_job_does_not_import_pandas():
+    """The study's last job (write_manifest) starts without pandas' import (~0.5 s)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, facemotion.manifest, facemotion.snakemake_adapter; "
+            "print('pandas' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "False"

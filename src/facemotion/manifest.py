@@ -12,13 +12,17 @@ still on disk. A sidecar that cannot be read is an error naming it.
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from facemotion.errors import InputError
 from facemotion.provenance import SIDECAR_SUFFIX, sha256_file, sidecar_path
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 COLUMNS = ["path", "sha256", "bytes", "schema_id", "schema_version", "step", "sidecar",
            "git_commit"]
@@ -56,6 +60,23 @@ def build_manifest(results_dir: str | Path, targets) -> pd.DataFrame:
     """One row per output of the jobs that made ``targets`` and their upstream jobs under
     ``results_dir`` (sorted by path). Checksums are recomputed and compared with the
     sidecars'; a mismatch (a file changed after it was written) is an error."""
+    import pandas as pd
+
+    return pd.DataFrame(manifest_rows(results_dir, targets), columns=COLUMNS)
+
+
+def manifest_tsv(rows: list[dict]) -> bytes:
+    """The manifest's TSV (as ``provenance.table_bytes`` writes a table: tab-separated, no
+    index, Unix newlines), without pandas: the manifest job is the study's last."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, delimiter="\t", lineterminator="\n")
+    writer.writerow(COLUMNS)
+    writer.writerows([row[c] for c in COLUMNS] for row in rows)
+    return buf.getvalue().encode()
+
+
+def manifest_rows(results_dir: str | Path, targets) -> list[dict]:
+    """The rows of :func:`build_manifest`, as dicts with the keys ``COLUMNS``."""
     results_dir = Path(results_dir)
     cache: dict[Path, dict] = {}
     todo = []
@@ -101,6 +122,7 @@ def build_manifest(results_dir: str | Path, targets) -> pd.DataFrame:
                          "schema_version": meta.get("schema_version", ""),
                          "step": meta.get("step", ""), "sidecar": str(side),
                          "git_commit": meta.get("git", {}).get("commit", "")})
-    table = pd.DataFrame(rows, columns=COLUMNS)
-    return table.drop_duplicates("path").sort_values("path", kind="stable").reset_index(
-        drop=True)
+    first = {}
+    for row in rows:  # the first row of each path, then sorted by path
+        first.setdefault(row["path"], row)
+    return [first[p] for p in sorted(first)]
