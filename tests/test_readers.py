@@ -1,6 +1,7 @@
 """Readers and writers: round trips, independent files (raw ezc3d, hand-written text), errors."""
 
 import os
+from pathlib import Path
 
 import ezc3d
 import numpy as np
@@ -12,6 +13,7 @@ from facemotion.readers import (
     read_csv,
     read_recording,
     read_trc,
+    trc_frame_count,
     write_c3d,
     write_csv,
     write_trc,
@@ -193,6 +195,25 @@ def test_trc_errors(tmp_path, bad, match):
     (tmp_path / "bad.trc").write_text(HAND_TRC.replace(*bad))
     with pytest.raises(InputError, match=r"bad\.trc.*" + match):
         read_trc(tmp_path / "bad.trc")
+
+
+def test_trc_frame_count_from_the_header_is_the_readers_count(tmp_path):
+    """The parse-time count (header only) equals the frames read, on GRID's TRCs and a
+    hand-written file; a header that lies about NumFrames is refused by the reader."""
+    (tmp_path / "hand.trc").write_text(HAND_TRC)
+    shared = Path(os.environ.get("FACEMOTION_SHARED_DATA",
+                                 Path(__file__).resolve().parents[2] / "shared" / "data"))
+    files = [tmp_path / "hand.trc", *sorted((shared / "grid").glob("*.trc"))[:2]]
+    assert len(files) == 3
+    for f in files:
+        assert trc_frame_count(f) == read_trc(f).n_frames
+    (tmp_path / "lies.trc").write_text(HAND_TRC.replace("\t3\t2\tm", "\t4\t2\tm"))
+    assert trc_frame_count(tmp_path / "lies.trc") == 4
+    with pytest.raises(InputError, match="NumFrames=4"):
+        read_trc(tmp_path / "lies.trc")
+    with pytest.raises(InputError, match=r"nounits\.trc.*no Units"):
+        (tmp_path / "nounits.trc").write_text(HAND_TRC.replace("\t3\t2\tm\t", "\t3\t2\t\t"))
+        trc_frame_count(tmp_path / "nounits.trc")
 
 
 # ------------------------------------------------------------------------------------------ CSV

@@ -491,6 +491,19 @@ def _trc_header(p: Path, lines: list[str], units: str | None):
     return rate, n_frames, labels, scale, used, source
 
 
+def trc_frame_count(path, units: str | None = None) -> int:
+    """A TRC file's number of frames from its header alone (NumFrames, checked like
+    :func:`read_trc` checks the header). :func:`read_trc` stops on a file whose data lines
+    are not NumFrames, so the count is the frames the file gives when it can be read."""
+    p = _check_readable(path)
+    try:
+        with open(p, encoding="utf-8-sig") as fh:
+            lines = [line for _, line in zip(range(5), fh, strict=False)]
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{p}: cannot read TRC text ({type(e).__name__})") from None
+    return _trc_header(p, lines, units)[1]
+
+
 def read_trc(path, units: str | None = None) -> Recording:
     """Read a TRC file (OpenSim / Motion Analysis text format); empty fields are missing.
 

@@ -420,10 +420,10 @@ def _file_labels(subj):
 
 def _lip_frames(ls, spec):
     if spec["source"] == "grid":
-        from facemotion.readers import read_trc
+        from facemotion.readers import trc_frame_count  # the header's (the job reads all)
 
         tracks = lip_inputs(SimpleNamespace(lip_subject=ls))["tracks"]
-        return sum(read_trc(t).n_frames for t in tracks)
+        return sum(trc_frame_count(t) for t in tracks)
     return spec.get("frames", 150)
 
 
