@@ -420,7 +420,8 @@ def _file_labels(subj):
 
 def _lip_frames(ls, spec):
     if spec["source"] == "grid":
-        from facemotion.readers import trc_frame_count  # the header's (the job reads all)
+        # the header's count (the job reads every frame)
+        from facemotion.readers import trc_frame_count
 
         tracks = lip_inputs(SimpleNamespace(lip_subject=ls))["tracks"]
         return sum(trc_frame_count(t) for t in tracks)
