@@ -11,7 +11,7 @@ rule simulate_lip_talker:
         "<results>/logs/simulate_lip_talker/{lip_subject}.log",
     benchmark:
         "<results>/benchmarks/simulate_lip_talker/{lip_subject}.tsv"
-    priority: 9
+    priority: 14
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -99,7 +99,7 @@ rule fit_lip_model:
         "<results>/logs/fit_lip_model.log",
     benchmark:
         "<results>/benchmarks/fit_lip_model/all.tsv"
-    priority: 8
+    priority: 13
     conda:
         "../envs/facemotion.yaml"
     threads: 1

@@ -184,7 +184,7 @@ rule compare_subsets:
         "<results>/logs/compare_subsets.log",
     benchmark:
         "<results>/benchmarks/compare_subsets/all.tsv"
-    priority: 13
+    priority: 11
     conda:
         "../envs/facemotion.yaml"
     threads: 1
