@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from facemotion.errors import InputError
-from facemotion.recording import Recording
+from facemotion.recording import Recording, finite_samples
 
 
 def parse_copy_markers(spec, where: str = "copy_markers") -> list[tuple[str, str]]:
@@ -76,7 +76,7 @@ def copy_fill(recs: list[Recording], pairs: list[tuple[str, str]],
         jt, js = labels.index(t), labels.index(s)
         diffs, firsts = [], []
         for r in recs:
-            both = np.isfinite(r.points[:, [jt, js]]).all(axis=(1, 2))
+            both = finite_samples(r.points[:, [jt, js]]).all(axis=1)
             d = r.points[both, jt] - r.points[both, js]
             diffs.append(d)
             firsts.append(d[0] if len(d) else None)

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from facemotion.errors import InputError
-from facemotion.recording import Recording
+from facemotion.recording import Recording, finite_samples
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -208,7 +208,7 @@ def build_displacements(recordings: list[Recording] | Recording,
         if hr.shape != (rec.n_frames,):
             raise InputError(f"{src}: head residual has shape {hr.shape}, expected "
                              f"({rec.n_frames},)")
-        bad = ~np.isfinite(rec.points).all(axis=2)
+        bad = ~finite_samples(rec.points)
         if bad.any():
             f, j = (int(x) for x in np.argwhere(bad)[0])  # row-major: earliest frame
             raise InputError(f"{src}: marker {rec.labels[j]!r} is missing at t = "

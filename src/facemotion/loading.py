@@ -23,6 +23,7 @@ from facemotion.displacements import (
 )
 from facemotion.errors import InputError
 from facemotion.input.segments import Segment, cut
+from facemotion.recording import finite_samples
 
 if TYPE_CHECKING:
     from facemotion.validation import Limits
@@ -162,7 +163,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
             raise InputError(f"{paths[0]}: {len(head_markers)} head marker(s) given "
                              f"({', '.join(head_markers)}); at least 3 are needed")
         ref_rec = recs[0].select(list(head_markers))
-        complete = np.flatnonzero(np.isfinite(ref_rec.points).all(axis=(1, 2)))
+        complete = np.flatnonzero(finite_samples(ref_rec.points).all(axis=1))
         if complete.size == 0:
             raise InputError(f"{paths[0]}: no frame has all head markers "
                              f"{', '.join(head_markers)}")
@@ -190,7 +191,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     log.info("analysing %d of %d markers: %s", len(keep), len(labels), ", ".join(keep))
     if dropped:
         log.info("left out (sheet's include/exclude_markers): %s", ", ".join(dropped))
-    missing = [~np.isfinite(r.points).all(axis=2) for r in recs]
+    missing = [~finite_samples(r.points) for r in recs]
     recs, copied = copy_fill(recs, list(copy_markers),
                              where=f"{paths[0]}: subject sheet's copy_markers")
     for t, s in copy_markers:
@@ -245,7 +246,7 @@ def _report_copies(rep: pd.DataFrame, miss: np.ndarray, rec, pairs: list[tuple[s
     from facemotion.gaps import runs
 
     rep = rep.copy()
-    copied = miss & np.isfinite(rec.points).all(axis=2)
+    copied = miss & finite_samples(rec.points)
     for t, s in pairs:
         j = rec.labels.index(t)
         i = int(np.flatnonzero(rep["marker"].to_numpy() == t)[0])

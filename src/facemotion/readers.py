@@ -33,7 +33,7 @@ import numpy as np
 
 from facemotion.errors import InputError, token
 from facemotion.provenance import atomic_path
-from facemotion.recording import Recording
+from facemotion.recording import Recording, finite_samples
 
 FORMATS = ("c3d", "trc", "csv", "qualisys_tsv", "optitrack_csv", "openface_csv")
 #: Parse regular TRC/CSV text with the C parser (benchmarks switch it off to compare).
@@ -343,8 +343,8 @@ def read_c3d(path, units: str | None = None) -> Recording:
         residual = np.asarray(meta["residuals"], dtype=float)[0, kept].T  # (frames, markers)
     else:
         residual = np.zeros(xyz.shape[:2])
-    invalid = (residual < 0) | ~np.isfinite(xyz).all(axis=2)
-    invalid |= (xyz == 0).all(axis=2) & ~(residual > 0)
+    invalid = (residual < 0) | ~finite_samples(xyz)
+    invalid |= (xyz[..., 0] == 0) & (xyz[..., 1] == 0) & (xyz[..., 2] == 0) & ~(residual > 0)
     xyz[invalid] = np.nan
     return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
 

@@ -46,7 +46,7 @@ import numpy as np
 from facemotion.errors import InputError
 from facemotion.gaps import runs
 from facemotion.readers import unit_scale
-from facemotion.recording import Recording
+from facemotion.recording import Recording, finite_samples
 
 log = logging.getLogger("facemotion")
 
@@ -156,7 +156,7 @@ def centre_distances(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
     enough = np.zeros(F, dtype=bool)
     for a in range(0, F, BLOCK_FRAMES):
         blk = pts[a:a + BLOCK_FRAMES]
-        ok = np.isfinite(blk).all(axis=2)
+        ok = finite_samples(blk)
         enough[a:a + len(blk)] = ok.sum(axis=1) >= 3
         e = np.flatnonzero(enough[a:a + len(blk)])
         if e.size == 0:
@@ -246,7 +246,7 @@ def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 20
     for rec in recs[1:]:
         where = rec.source or "recording"
         cols = np.isfinite(ref).all(axis=1)
-        frames = np.flatnonzero(np.isfinite(rec.points[:, cols]).all(axis=(1, 2)))
+        frames = np.flatnonzero(finite_samples(rec.points[:, cols]).all(axis=1))
         if cols.sum() < 3 or frames.size == 0:
             out.append(float("nan"))
             continue
@@ -269,7 +269,7 @@ def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 20
 def check_moves(rec: Recording) -> None:
     """InputError if no marker of the take ever leaves its first measured position."""
     pts = rec.points
-    ok = np.isfinite(pts).all(axis=2)
+    ok = finite_samples(pts)
     first = np.argmax(ok, axis=0)  # each marker's first measured frame
     ref = pts[first, np.arange(rec.n_markers)]
     with np.errstate(invalid="ignore"):
@@ -346,7 +346,7 @@ def find_outliers(rec: Recording, limits: Limits,
     ``distances``: :func:`centre_distances` of ``rec`` when already computed."""
     pts = np.asarray(rec.points, dtype=float)
     F, n, _ = pts.shape
-    ok = np.isfinite(pts).all(axis=2)
+    ok = finite_samples(pts)
     out = np.zeros((F, n), dtype=bool)
     # distance from the face centre: the per-axis median of the markers measured in the frame
     dist, _ = centre_distances(rec) if distances is None else distances
@@ -398,7 +398,7 @@ def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,
     spread = check_face_spread(rec, limits, distances)
     mask, notes = find_outliers(rec, limits, distances)
     check_moves(rec)
-    measured = np.isfinite(rec.points).all(axis=2).sum()
+    measured = finite_samples(rec.points).sum()
     if measured and mask.sum() > MAX_OUTLIER_FRACTION * measured:
         raise InputError(f"{where}: {mask.sum()} of the take's {measured} measured samples are "
                          f"outliers (more than {MAX_OUTLIER_FRACTION:.0%}; first: {notes[0]})")
