@@ -131,3 +131,32 @@ def test_align_head_fits_each_frame_with_the_head_markers_it_has():
         R, t = rigid_fit(rec.points[f, cols], head[cols])
         np.testing.assert_allclose(aligned.points[f, 4:], rec.points[f, 4:] @ R.T + t,
                                    atol=1e-9)
+
+
+def test_collinear_frames_match_the_svd_decision():
+    """The bound that spares most frames the SVD finds exactly the frames the SVD finds:
+    general, near the threshold s2 / s1 = COLLINEAR_TOL on both sides, exactly collinear,
+    coincident, 3 and 6 points, far from the origin."""
+    from facemotion.head_motion import COLLINEAR_TOL, _collinear_frames
+
+    rng = np.random.default_rng(7)
+    frames = []
+    for m in (3, 4, 6):
+        for ratio in (1.0, 0.3, 0.01, 2 * COLLINEAR_TOL, 1.01 * COLLINEAR_TOL,
+                      COLLINEAR_TOL, 0.99 * COLLINEAR_TOL, 0.5 * COLLINEAR_TOL, 1e-9, 0.0):
+            for _ in range(20):
+                # points with singular values about (1, ratio, ratio / 3), rotated, shifted
+                P = rng.standard_normal((m, 3))
+                P -= P.mean(axis=0)
+                U, _, Vt = np.linalg.svd(P, full_matrices=False)
+                S = np.array([1.0, ratio, ratio / 3])[:len(Vt)]
+                P = (U * S) @ Vt
+                frames.append(P @ Rotation.random(random_state=rng).as_matrix().T
+                              + rng.uniform(-500, 500, 3))
+        frames.append(np.zeros((m, 3)) + 7.0)  # all points at one place
+    for m in (3, 4, 6):
+        X = np.stack([f for f in frames if f.shape[0] == m])
+        s = np.linalg.svd(X - X.mean(axis=1, keepdims=True), compute_uv=False)
+        expected = np.flatnonzero(s[:, 1] < COLLINEAR_TOL * s[:, 0])
+        assert 0 < expected.size < len(X)
+        np.testing.assert_array_equal(_collinear_frames(X), expected)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from facemotion.errors import InputError
-from facemotion.recording import Recording
+from facemotion.recording import Recording, finite_samples
 
 # Centred head markers with s2 / s1 below this (singular values) are taken as collinear:
 # the rotation about their line would be undetermined.
@@ -39,6 +39,30 @@ def _kabsch_batch(X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     R = Vt.transpose(0, 2, 1) @ D @ U.transpose(0, 2, 1)
     t = yb - np.einsum("bij,bj->bi", R, xb)
     return R, t
+
+
+def _collinear_frames(X: np.ndarray) -> np.ndarray:
+    """Indices of the frames of X (B, m, 3) whose centred points have singular values
+    s2 < COLLINEAR_TOL * s1, in order.
+
+    The SVD is needed only for frames a cheap bound cannot clear. With C = Xc^T Xc (3 x 3)
+    and its eigenvalues l1 >= l2 >= l3 >= 0 (l_i = s_i^2), the sum of C's principal 2 x 2
+    minors is e2 = l1 l2 + l1 l3 + l2 l3 <= 3 l1 l2 and l1 <= tr C, so
+    l2 / l1 >= e2 / (3 (tr C)^2). Frames with e2 > 6 COLLINEAR_TOL^2 (tr C)^2 thus have
+    s2 / s1 >= sqrt(2) COLLINEAR_TOL (the factor 2 is far above the rounding of e2 and of the
+    SVD, about 1e-15 here), and the SVD would clear them too; the others are decided by the
+    SVD as before, so the frames found are the same.
+    """
+    Xc = X - X.mean(axis=1, keepdims=True)
+    C = np.einsum("bmi,bmj->bij", Xc, Xc)
+    tr = C[:, 0, 0] + C[:, 1, 1] + C[:, 2, 2]
+    e2 = (C[:, 0, 0] * C[:, 1, 1] - C[:, 0, 1] ** 2 + C[:, 0, 0] * C[:, 2, 2] - C[:, 0, 2] ** 2
+          + C[:, 1, 1] * C[:, 2, 2] - C[:, 1, 2] ** 2)
+    unclear = np.flatnonzero(~(e2 > 6.0 * COLLINEAR_TOL ** 2 * tr ** 2))
+    if unclear.size == 0:
+        return unclear
+    s = np.linalg.svd(Xc[unclear], compute_uv=False)
+    return unclear[s[:, 1] < COLLINEAR_TOL * s[:, 0]]
 
 
 def _is_collinear(P: np.ndarray) -> bool:
@@ -87,8 +111,8 @@ def align_head(rec: Recording, head_markers: list[str], reference=None
     if len(set(head_markers)) != len(head_markers):
         raise InputError(f"{src}: head markers listed twice: {', '.join(head_markers)}")
     idx = [rec.index(h) for h in head_markers]
-    head = rec.points[:, idx, :]  # (F, m, 3)
-    present = np.isfinite(head).all(axis=2)  # (F, m)
+    head = np.take(rec.points, idx, axis=1)  # (F, m, 3)
+    present = finite_samples(head)  # (F, m)
     if reference is None:
         complete = np.flatnonzero(present.all(axis=1))
         if complete.size == 0:
@@ -128,8 +152,7 @@ def align_head(rec: Recording, head_markers: list[str], reference=None
                              f"(at least 3 are needed; {frames.size} frame(s) like this)")
         X = head[frames][:, cols, :]
         Y = np.broadcast_to(ref[cols], X.shape)
-        s = np.linalg.svd(X - X.mean(axis=1, keepdims=True), compute_uv=False)
-        bad = np.flatnonzero(s[:, 1] < COLLINEAR_TOL * s[:, 0])
+        bad = _collinear_frames(X)
         if bad.size:
             f = int(frames[bad[0]])
             names = ", ".join(head_markers[j] for j in cols)

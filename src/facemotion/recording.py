@@ -98,6 +98,8 @@ class Recording:
     def select(self, labels: list[str]) -> Recording:
         """A new recording with only these markers, in this order."""
         idx = [self.index(label) for label in labels]
-        # (indexing with a list copies: the new recording shares no memory with this one)
-        return Recording(list(labels), self.points[:, idx, :], self.rate, self.source,
-                         self.filled[:, idx], self.units, self.units_source)
+        # np.take copies (no memory shared with this recording) in C order, many times faster
+        # than points[:, idx, :], whose result has the marker axis outermost in memory
+        return Recording(list(labels), np.take(self.points, idx, axis=1), self.rate,
+                         self.source, np.take(self.filled, idx, axis=1), self.units,
+                         self.units_source)
