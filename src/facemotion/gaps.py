@@ -96,20 +96,27 @@ def gap_report(rec: Recording, filled_by_us: np.ndarray | None = None,
     filled = rec.filled.copy()
     if filled_by_us is not None:
         filled |= filled_by_us
-    rows = []
-    for j, label in enumerate(rec.labels):
-        r = runs(miss[:, j]) if miss[:, j].any() else []
-        rows.append({
-            "marker": str(label),
-            "frames": rec.n_frames,
-            "missing_frames": int(miss[:, j].sum()),
-            "missing_fraction": float(miss[:, j].mean()) if rec.n_frames else 0.0,
-            "longest_gap_frames": max((b - a for a, b in r), default=0),
-            "n_gaps": len(r),
-            "filled_frames": int(filled[:, j].sum()),
-            "fill_method": methods[j] if methods is not None else "none",
-        })
-    return pd.DataFrame(rows, columns=REPORT_COLUMNS)
+    n, F = rec.n_markers, rec.n_frames
+    if n == 0:
+        return pd.DataFrame([], columns=REPORT_COLUMNS)
+    longest = np.zeros(n, dtype=np.int64)
+    n_gaps = np.zeros(n, dtype=np.int64)
+    missing_frames = miss.sum(axis=0, dtype=np.int64)
+    for j in np.flatnonzero(missing_frames):
+        r = runs(miss[:, j])
+        longest[j] = max(b - a for a, b in r)
+        n_gaps[j] = len(r)
+    return pd.DataFrame({
+        "marker": [str(label) for label in rec.labels],
+        "frames": np.full(n, F, dtype=np.int64),
+        "missing_frames": missing_frames,
+        # a count over F: the same value as the mean of the column (exact sums of 0 and 1)
+        "missing_fraction": missing_frames / F if F else np.zeros(n),
+        "longest_gap_frames": longest,
+        "n_gaps": n_gaps,
+        "filled_frames": filled.sum(axis=0, dtype=np.int64),
+        "fill_method": list(methods) if methods is not None else ["none"] * n,
+    }, columns=REPORT_COLUMNS)
 
 
 def _n_components(eigenvalues: np.ndarray) -> int:

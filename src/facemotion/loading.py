@@ -245,6 +245,8 @@ def _report_copies(rep: pd.DataFrame, miss: np.ndarray, rec, pairs: list[tuple[s
     the copy (``miss``: missing samples, gaps) and 'copy:SOURCE' among their fill methods."""
     from facemotion.gaps import runs
 
+    if not pairs:
+        return rep
     rep = rep.copy()
     copied = miss & finite_samples(rec.points)
     for t, s in pairs:

@@ -243,15 +243,16 @@ def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 20
         ref = np.nanmedian(np.where(np.isfinite(recs[0].points), recs[0].points, np.nan),
                            axis=0)
     out = [0.0]
+    cols = finite_samples(ref)
+    idx = np.flatnonzero(cols)
     for rec in recs[1:]:
         where = rec.source or "recording"
-        cols = np.isfinite(ref).all(axis=1)
-        frames = np.flatnonzero(finite_samples(rec.points[:, cols]).all(axis=1))
-        if cols.sum() < 3 or frames.size == 0:
+        frames = np.flatnonzero(finite_samples(rec.points)[:, cols].all(axis=1))
+        if idx.size < 3 or frames.size == 0:
             out.append(float("nan"))
             continue
         frames = frames[np.linspace(0, frames.size - 1, min(frames.size, max_frames)).astype(int)]
-        X = rec.points[frames][:, cols]
+        X = rec.points[frames][:, cols]  # (this layout: the sums, so the RMS, as before)
         proper, mirror = (float(np.min(r)) for r in _fit_rms(X, ref[cols]))
         if mirror < 0.5 * proper:
             raise InputError(f"{where}: the face is a mirror image of {recs[0].source}'s "
