@@ -143,3 +143,40 @@ def test_datasets_of_one_subject_share_its_takes(tmp_path, monkeypatch):
         assert a.sentences.equals(b.sentences) and a.gap_report.equals(b.gap_report)
     # the second design really is another order (another neutral pose and A)
     assert not np.array_equal(together[0].displacements.A, together[1].displacements.A)
+
+
+def test_datasets_of_one_subject_check_each_sentence_once(tmp_path, monkeypatch, caplog):
+    """With a shared ``takes`` dict, a sentence checked clean for one dataset is not checked
+    again for the next (the same results as checking it); a sentence whose check warned (an
+    outlier) is checked, and warned about, again for every dataset."""
+    import facemotion.validation
+
+    files = [str(tmp_path / f"s{i}.csv") for i in range(4)]
+    for i, f in enumerate(files):
+        make_take(f, i)
+    from facemotion.readers import read_recording
+
+    rec = read_recording(files[2], "csv")
+    rec.points[60, 5] += 400.0  # one sample far from the face: an outlier
+    write_csv(files[2], rec)
+    checked = []
+    real_check = facemotion.validation.check_take
+
+    def counting_check(rec, *args, **kwargs):
+        checked.append(rec.source)
+        return real_check(rec, *args, **kwargs)
+
+    monkeypatch.setattr(facemotion.validation, "check_take", counting_check)
+    kw = {"head_markers": HEAD, "exclude_markers": HEAD}
+    designs = [{"train": [0, 1, 2], "heldout": [3]}, {"train": [3, 2, 1], "heldout": [0]}]
+    shared: dict = {}
+    with caplog.at_level("WARNING", logger="facemotion"):
+        together = [load_dataset(files, "csv", **kw, **d, takes=shared) for d in designs]
+    assert sorted(checked) == sorted(files + [files[2]])
+    assert sum("outlier" in r.getMessage() for r in caplog.records) == 2
+    checked.clear()
+    alone = [load_dataset(files, "csv", **kw, **d) for d in designs]
+    assert len(checked) == 2 * len(files)
+    for a, b in zip(together, alone, strict=True):
+        assert np.array_equal(a.displacements.A, b.displacements.A)
+        assert a.sentences.equals(b.sentences) and a.gap_report.equals(b.gap_report)

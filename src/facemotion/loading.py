@@ -103,7 +103,8 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     the arguments of :func:`load`).
     ``takes``: a dict shared by the calls that load several datasets of one subject (the same
     files in another order, e.g. S2a and S2a*): each take is read once and kept there (the
-    recordings read are never modified). Without it, a take is dropped once cut.
+    recordings read are never modified), with the results of the sentences' checks that
+    found nothing to warn about. Without it, a take is dropped once cut.
     """
     from facemotion.gaps import fill_gaps
     from facemotion.head_motion import align_head
@@ -153,7 +154,15 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     used = keep + [m for m in head_markers if m not in set(keep)]
     checks = []
     for i, (rec, role) in enumerate(zip(recs, roles, strict=True)):
-        recs[i], found = check_take(rec.select(used), limits, sheet_units=units, role=role)
+        # a sentence checked clean for another dataset of the subject (same interval, markers
+        # and limits; nothing to warn about) is not checked again
+        checked = ("checked", chosen[i], fmt, units, subject_prefix, tuple(used), limits)
+        if checked in takes:
+            recs[i], found = rec.select(used), takes[checked]
+        else:
+            recs[i], found = check_take(rec.select(used), limits, sheet_units=units, role=role)
+            if shared and not found.units_conflict and not found.outliers.any():
+                takes[checked] = found
         checks.append(found)
     shape_rms = check_same_shape(recs, limits)
     # Head motion: one neutral head configuration (the first take's) for all takes.
