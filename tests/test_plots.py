@@ -1,5 +1,7 @@
 """Figures: structure, labelled axes, and the numbers they draw against independent references."""
 
+from unittest import mock
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -632,3 +634,93 @@ def _titled_figures(face, qr_case):
                                   "gaps", "markers", "selection"])
 def test_titles_sit_at_the_top_of_their_axes_clear_of_every_other_text(face, qr_case, name):
     assert_titles_clear(_titled_figures(face, qr_case)[name]())
+
+
+# ---------------------------------------------------------------- fixed layouts
+
+
+def assert_laid_out(fig):
+    """An independent geometric check of a figure's layout, from the rendered extents at the
+    report's resolution: every text is inside the figure; no two texts overlap (the small data
+    labels a figure leaves out of its layout, ``in_layout=False``, excepted); no text outside
+    the axes (tick labels, axis labels, titles, figure texts) covers a panel's frame."""
+    from facemotion.provenance import FIGURE_DPI
+
+    fig.set_dpi(FIGURE_DPI)
+    canvas = FigureCanvasAgg(fig)
+    drawn = []  # the texts a draw draws (not, e.g., the labels of ticks out of view)
+    draw = matplotlib.text.Text.draw
+
+    def record(self, renderer):
+        drawn.append(self)
+        return draw(self, renderer)
+
+    with mock.patch.object(matplotlib.text.Text, "draw", record):
+        canvas.draw()
+    r = canvas.get_renderer()
+    box = fig.bbox
+    texts = [t for t in dict.fromkeys(drawn)
+             if t.get_visible() and t.get_text() and t.get_in_layout()]
+    extents = [matplotlib.text.Text.get_window_extent(t, r) for t in texts]  # no arrows
+    for t, e in zip(texts, extents, strict=True):
+        assert (e.x0 >= box.x0 - 1 and e.x1 <= box.x1 + 1 and e.y0 >= box.y0 - 1
+                and e.y1 <= box.y1 + 1), f"outside the figure: {t.get_text()!r}"
+    for i, (t, e) in enumerate(zip(texts, extents, strict=True)):
+        for u, f in zip(texts[i + 1:], extents[i + 1:], strict=True):
+            assert not e.overlaps(f), f"overlap: {t.get_text()!r} and {u.get_text()!r}"
+    inside = {id(t) for ax in fig.axes for t in ax.texts}
+    inside |= {id(t) for ax in fig.axes if ax.get_legend() for t in ax.get_legend().findobj(
+        matplotlib.text.Text)}
+    frames = [ax.get_window_extent(r) for ax in fig.axes if ax.axison]
+    for t, e in zip(texts, extents, strict=True):
+        if id(t) not in inside:
+            for frame in frames:
+                assert not e.overlaps(frame), f"covers a panel: {t.get_text()!r}"
+
+
+def _curve(k_max, scale, with_extras=True):
+    k = np.arange(1, k_max + 1)
+    df = pd.DataFrame({"k": k, "mean_abs_error_mm": scale / k,
+                       "rel_error_per_marker": 1.2 / k, "rel_error_pooled": 1.1 / k})
+    if with_extras:
+        df = df.assign(median_abs_error_mm=0.8 * scale / k, rms_error_mm=1.2 * scale / k,
+                       max_abs_error_mm=5 * scale / k)
+    return df
+
+
+def _fixed_layout_figures(face):
+    _, labels = face
+    t = np.arange(400) / 120.0
+    big = np.column_stack([12.5 * np.sin(t), -12.5 * np.cos(t), 0.01 * t])
+    zero_last = _curve(33, 0.05)
+    zero_last.loc[zero_last.index[-1], [c for c in zero_last.columns if c != "k"]] = 0.0
+    with_zero = _curve(20, 0.005)
+    with_zero.loc[4, "mean_abs_error_mm"] = 0.0
+    sweep = [{"n_sentences": n, "order": o, "marker": f"marker_{o}" if n > 3 else f"m{o}",
+              "r_rms": 0.01 * (1 + 1.0 / o) + 0.001 * n} for n in range(1, 31)
+             for o in range(1, 15)]
+    r_zero = _r_table(labels, 0.01)
+    r_zero.loc[r_zero.index[-3:], "r_normalised"] = 0.0
+    return {
+        "error_curve": lambda: plot_error_curves({"S1": zero_last}, n_markers={"S1": 33}),
+        "error_curves_notes": lambda: plot_error_curves(
+            {f"S{i}": _curve(56, 10.0 ** (i - 2), i % 2 == 0) for i in range(5)}
+            | {"zero": with_zero, "all": zero_last}),
+        "trajectory": lambda: plot_trajectory(t, big, big + 0.3, marker="Chin",
+                                              sentence="s03", k=10),
+        "trajectory_3_lines": lambda: plot_trajectory(
+            t, big, big, marker="Chin", sentence="s03", k=10, in_basis=True,
+            note="marker 56 requested, not in this dataset"),
+        "sweep": lambda: plot_sentence_sweep(pd.DataFrame(sweep)),
+        "r_values": lambda: plot_r_values({"S1": _r_table(labels, 0.01)}),
+        "r_values_zeros": lambda: plot_r_values(
+            {"S1": r_zero, "S2": _r_table(labels[::-1], 100.0), "S3": _r_table(labels)}),
+    }
+
+
+@pytest.mark.parametrize("name", ["error_curve", "error_curves_notes", "trajectory",
+                                  "trajectory_3_lines", "sweep", "r_values", "r_values_zeros"])
+def test_fixed_layouts_keep_every_text_inside_and_apart(face, name):
+    fig = _fixed_layout_figures(face)[name]()
+    assert fig.get_layout_engine() is None  # laid out once, when built
+    assert_laid_out(fig)

@@ -11,7 +11,15 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator, PercentFormatter
 
 from facemotion.errors import InputError
-from facemotion.plots.style import MARKERS, colour, plain_log_labels, require_tables, set_title
+from facemotion.plots.style import (
+    MARKERS,
+    colour,
+    fixed_layout,
+    plain_log_labels,
+    require_tables,
+    set_title,
+    yaxis_width,
+)
 
 _EXTRA = {"median_abs_error_mm": ("median", "--"), "rms_error_mm": ("rms", "-."),
           "max_abs_error_mm": ("max", ":")}
@@ -52,7 +60,7 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
     """
     require_tables(df_by_dataset, ("k", "mean_abs_error_mm", "rel_error_per_marker"),
                    "error curves")
-    fig = Figure(figsize=(10.0, 4.4), layout="constrained")
+    fig = Figure(figsize=(10.0, 4.4))
     ax_abs, ax_rel = fig.subplots(1, 2)
     extras_used = []
     zero_k: list[str] = []
@@ -89,17 +97,18 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
                          f"n = {n} ({', '.join(names)})" for n, names in all_main.items()))
     if zero_k:
         notes.append("(numerically) zero error, not on the log axis: " + "; ".join(zero_k))
+    note_lines = sum(n.count("\n") + 1 for n in notes)
     if notes:
         fig.supxlabel("\n".join(notes), fontsize=7.5, color="0.3")
     ax_abs.set(xlabel="k (number of main markers)",
-               ylabel="held-out 3-D error (mm, log scale)",
-               title="Absolute error (paper Fig. 10 top)")
+               ylabel="held-out 3-D error (mm, log scale)")
+    set_title(ax_abs, "Absolute error (paper Fig. 10 top)")
     plain_log_labels(ax_abs.yaxis)
     ax_rel.yaxis.set_major_formatter(PercentFormatter(xmax=1.0))
     ax_rel.set_ylim(bottom=0)
     ax_rel.set(xlabel="k (number of main markers)",
-               ylabel="relative error, mean over markers of\nmean |error| / mean |displacement|",
-               title="Relative error (paper Fig. 10 bottom)")
+               ylabel="relative error, mean over markers of\nmean |error| / mean |displacement|")
+    set_title(ax_rel, "Relative error (paper Fig. 10 bottom)")
     for ax in (ax_abs, ax_rel):
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(True, which="major", alpha=0.3)
@@ -115,6 +124,13 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
         names.append("pooled: sum |error| / sum |displacement|")
     ax_rel.legend(handles=handles, labels=names, fontsize=8)
     fig.suptitle("Held-out prediction error of the secondary markers from k main markers")
+    # fixed layout (inches): the titles above, the notes under the panels (0.15 in a line),
+    # the y axes' measured tick labels and labels left of each panel
+    margins = {"right": 0.12, "top": 0.52,
+               "bottom": 0.48 + (0.05 + 0.15 * note_lines if note_lines else 0.0)}
+    fixed_layout(fig, left=0.6, wgap=0.96, **margins)
+    fixed_layout(fig, left=yaxis_width(ax_abs) + 0.05, wgap=yaxis_width(ax_rel) + 0.2,
+                 **margins)
     return fig
 
 
@@ -130,7 +146,7 @@ def plot_trajectory(time_s, measured, predicted, marker: str, sentence: str, k: 
     if measured.shape != (t.size, 3) or predicted.shape != (t.size, 3):
         raise InputError(f"trajectory of marker {marker}: measured {measured.shape} and "
                          f"predicted {predicted.shape} must both be ({t.size}, 3)")
-    fig = Figure(figsize=(8.0, 6.4), layout="constrained")
+    fig = Figure(figsize=(8.0, 6.4))
     axes = fig.subplots(3, 1, sharex=True)
     names = ("x (talker's right → left)", "y (up)", "z (forward)")
     for a, ax in enumerate(axes):
@@ -152,5 +168,12 @@ def plot_trajectory(time_s, measured, predicted, marker: str, sentence: str, k: 
                   "so its error is zero")
     if note:
         title += f"\n({note})"
-    fig.suptitle(title, color="#BB0000" if in_basis else "black")
+    # fixed layout (inches): the suptitle's lines (0.2 in each) 0.08 in under the top edge,
+    # each panel's title between the panels, the measured y tick labels and labels on the left
+    fig.suptitle(title, color="#BB0000" if in_basis else "black",
+                 y=1 - 0.08 / fig.get_figheight(), va="top")
+    margins = {"right": 0.12, "bottom": 0.48, "hgap": 0.32,
+               "top": 0.52 + 0.2 * title.count("\n")}
+    fixed_layout(fig, left=0.6, **margins)
+    fixed_layout(fig, left=yaxis_width(*axes) + 0.05, **margins)
     return fig

@@ -12,10 +12,12 @@ from facemotion.plots.facemap import HALO
 from facemotion.plots.style import (
     MARKERS,
     colour,
+    fixed_layout,
     keep_legible,
     plain_log_labels,
     require_tables,
     set_title,
+    yaxis_width,
 )
 
 #: y-axis label per normalisation of R (the ``r_normalisation`` column of r_values.tsv)
@@ -44,7 +46,7 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     tolerance label and stays inside the axes; the others are left out rather than piled up.
     """
     require_tables(tables, ("order", "marker", column), "r values")
-    fig = Figure(figsize=(7.0, 4.6), layout="constrained")
+    fig = Figure(figsize=(7.0, 4.6))
     ax = fig.subplots()
     n_max = 1
     lows = []
@@ -87,11 +89,18 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
              for v in df["r_normalisation"].unique()}
     ylabel = (_NORM_LABEL.get(norms.pop(), column) if len(norms) == 1
               else f"{column} (mm, log scale)")
+    if len(ylabel) > 40:  # two lines: one is longer than the axes are high
+        ylabel = ylabel.replace(" (", "\n(", 1)
     ax.set_ylabel(ylabel)
     set_title(ax, "Independent motion of each pivot marker (diagonal of R)")
     ax.grid(True, which="major", alpha=0.3)
     plain_log_labels(ax.yaxis)
     legend = ax.legend(fontsize=8, loc="upper right")
+    # fixed layout (inches): the title above, the note line under the axes, the measured y
+    # tick labels and label on the left (before the labels that must stay inside the axes)
+    margins = {"right": 0.1, "top": 0.25, "bottom": 0.48 + (0.2 if zeros else 0.0)}
+    fixed_layout(fig, left=0.85, **margins)
+    fixed_layout(fig, left=yaxis_width(ax) + 0.05, **margins)
     # Labels of the last pivots below ``annotate_below``: below-left of a point near the right
     # edge, above-right of the others (where a falling curve leaves room); datasets in turn;
     # kept only where legible.

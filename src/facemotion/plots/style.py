@@ -55,6 +55,45 @@ def set_title(ax, text: str, **kwargs):
     return ax.set_title(text, y=1.0, **kwargs)
 
 
+def fixed_layout(fig, *, left: float, right: float, bottom: float, top: float,
+                 wgap: float = 0.0, hgap: float = 0.0) -> None:
+    """Place the figure's grid of subplots (``fig.subplots``, on a figure without a layout
+    engine) by margins and gaps in inches: from the figure's edges to the panels' frames, and
+    between the frames of neighbouring panels.
+
+    Instead of matplotlib's constrained layout, which measures every tick label and title of
+    every panel in two passes at each draw and makes ``savefig`` draw the whole figure once
+    more before the real draw: half or more of a simple figure's CPU. The figures here know
+    their texts (tick labels of a few characters, one or two label lines, the number of note
+    lines), so the caller sets the room they need from the figure's size and content; the
+    figure tests check that no text leaves the figure or overlaps another."""
+    if fig.get_layout_engine() is not None:
+        raise ValueError("fixed_layout: the figure has a layout engine")
+    nrows, ncols = fig.axes[0].get_subplotspec().get_gridspec().get_geometry()
+    w, h = fig.get_size_inches()
+    cell_w = (w - left - right - wgap * (ncols - 1)) / ncols
+    cell_h = (h - top - bottom - hgap * (nrows - 1)) / nrows
+    if cell_w <= 0 or cell_h <= 0:
+        raise ValueError(f"fixed_layout: margins leave no room for the panels of a "
+                         f"{w:g} x {h:g} in figure")
+    fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
+                        wspace=wgap / cell_w, hspace=hgap / cell_h)
+
+
+def yaxis_width(*axes) -> float:
+    """Inches the y axes' tick labels and labels take left of their frames (the widest of
+    ``axes``), measured at the figure's current layout: the one variable a fixed layout
+    measures (tick labels are 1 to 5 characters wide), axis by axis and once, instead of
+    constrained layout's passes over every text of the figure."""
+    renderer = axes[0].figure._get_renderer()
+    room = 0.0
+    for ax in axes:
+        bb = ax.yaxis.get_tightbbox(renderer)
+        if bb is not None:
+            room = max(room, (ax.get_window_extent(renderer).x0 - bb.x0) / ax.figure.dpi)
+    return room
+
+
 def plain_log_labels(axis) -> None:
     """Plain numbers (0.5, 1, 2) on a log axis; minor ticks labelled when few decades show."""
     axis.set_major_formatter(_PlainLogFormatter(labelOnlyBase=False))

@@ -9,7 +9,15 @@ from matplotlib.ticker import MaxNLocator
 from matplotlib.transforms import offset_copy
 
 from facemotion.errors import InputError
-from facemotion.plots.style import LINESTYLES, MARKERS, plain_log_labels, require_columns, set_title
+from facemotion.plots.style import (
+    LINESTYLES,
+    MARKERS,
+    fixed_layout,
+    plain_log_labels,
+    require_columns,
+    set_title,
+    yaxis_width,
+)
 
 
 def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
@@ -25,7 +33,7 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
         raise InputError(f"sentence sweep: no rows with order <= {n_orders}")
     orders = sorted(df["order"].unique())
     cmap = colormaps["viridis"]
-    fig = Figure(figsize=(7.4, 4.8), layout="constrained")
+    fig = Figure(figsize=(7.4, 4.8))
     ax = fig.subplots()
     n_final = int(df["n_sentences"].max())
     above = offset_copy(ax.transData, fig=fig, y=4, units="points")
@@ -61,6 +69,15 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
                  "(small labels: pivot marker where it differs from the final one)",
                  fontsize=9.5)
     ax.grid(True, alpha=0.3)
-    fig.legend(title=f"order: marker\n(at n = {n_final})", fontsize=7.5, title_fontsize=8,
-               loc="outside right upper")
+    w, h = fig.get_size_inches()
+    pad = 0.04  # inches, as constrained layout's
+    legend = fig.legend(title=f"order: marker\n(at n = {n_final})", fontsize=7.5,
+                        title_fontsize=8, loc="upper right",
+                        bbox_to_anchor=(1 - pad / w, 1 - pad / h))
+    # fixed layout (inches): the legend's measured width (the marker labels vary) right of the
+    # axes, the two-line title above, the measured y tick labels and label on the left
+    legend_w = legend.get_window_extent(fig._get_renderer()).width / fig.dpi
+    margins = {"right": legend_w + pad + 0.1, "bottom": 0.48, "top": 0.42}
+    fixed_layout(fig, left=0.6, **margins)
+    fixed_layout(fig, left=yaxis_width(ax) + 0.05, **margins)
     return fig
