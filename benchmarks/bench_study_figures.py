@@ -38,6 +38,7 @@ def _figures(study: Path):
     from facemotion.pivoted_qr import rank_for_study
     from facemotion.plots.comparison import plot_paper_comparison
     from facemotion.plots.errors import plot_error_curves, plot_trajectory
+    from facemotion.plots.gaps import plot_gaps
     from facemotion.plots.rank import plot_r_values
     from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
     from facemotion.plots.selection import plot_selection_agreement
@@ -90,6 +91,24 @@ def _figures(study: Path):
         sweep = pd.read_csv(study / ds / "qr" / "sentence_sweep.tsv", sep="\t",
                             dtype={"marker": str})
         out.append(("sentence_sweep", ds, lambda s=sweep: plot_sentence_sweep(s)))
+        # the gap raster: the markers' gaps of gap_report.tsv (counts and longest gap) placed
+        # at fixed pseudo-random times (the loaded masks are not kept)
+        report = pd.read_csv(study / ds / "data" / "gap_report.tsv", sep="\t",
+                             dtype={"marker": str})
+        sent = pd.read_csv(study / ds / "data" / "sentences.tsv", sep="\t")
+        frames = int(report["frames"].max())
+        filled = np.zeros((frames, len(report)), dtype=bool)
+        rng = np.random.default_rng(0)
+        for j, row in enumerate(report.itertuples()):
+            for g in range(int(row.n_gaps)):
+                n = int(row.longest_gap_frames) if g == 0 else 1 + int(rng.integers(10))
+                a = int(rng.integers(0, frames - n))
+                filled[a:a + n, j] = True
+        starts = np.cumsum([0.0, *sent["duration_s"].to_numpy()[:-1]])
+        markers = report["marker"].tolist()
+        out.append(("gaps", ds, lambda f=filled, lab=markers, st=starts,
+                    r=d.rate: plot_gaps(np.arange(len(f)) / r, np.zeros_like(f), f, lab,
+                                        sentence_bounds=st)))
     out.append(("error_curves_all", "all", lambda: plot_error_curves(curves)))
     out.append(("r_values_all", "all", lambda: plot_r_values(r_tables,
                                                               tolerances=(0.25, 0.5, 1.0))))

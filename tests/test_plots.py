@@ -701,7 +701,16 @@ def _fixed_layout_figures(face):
              for o in range(1, 15)]
     r_zero = _r_table(labels, 0.01)
     r_zero.loc[r_zero.index[-3:], "r_normalised"] = 0.0
+    t_gap = np.arange(3000) / 100.0
+    gaps = np.zeros((3000, 300), dtype=bool)
+    for j in range(0, 300, 3):
+        gaps[10 * j:10 * j + 5 + j, j] = True
+    gap_labels = [f"lm{j:03d}" for j in range(300)]
     return {
+        "gaps": lambda: plot_gaps(t_gap, gaps, gaps & (t_gap[:, None] > 10), gap_labels,
+                                  sentence_bounds=np.arange(0, 30, 2.5)),
+        "gaps_few": lambda: plot_gaps(t_gap, gaps[:, :6], gaps[:, :6], labels[:6]),
+        "gaps_none": lambda: plot_gaps(t_gap, gaps[:, 1:3], gaps[:, 1:3], labels[:2]),
         "error_curve": lambda: plot_error_curves({"S1": zero_last}, n_markers={"S1": 33}),
         "error_curves_notes": lambda: plot_error_curves(
             {f"S{i}": _curve(56, 10.0 ** (i - 2), i % 2 == 0) for i in range(5)}
@@ -718,7 +727,8 @@ def _fixed_layout_figures(face):
     }
 
 
-@pytest.mark.parametrize("name", ["error_curve", "error_curves_notes", "trajectory",
+@pytest.mark.parametrize("name", ["gaps", "gaps_few", "gaps_none", "error_curve",
+                                  "error_curves_notes", "trajectory",
                                   "trajectory_3_lines", "sweep", "r_values", "r_values_zeros"])
 def test_fixed_layouts_keep_every_text_inside_and_apart(face, name):
     fig = _fixed_layout_figures(face)[name]()

@@ -10,7 +10,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from facemotion.errors import InputError
-from facemotion.plots.style import set_title
+from facemotion.plots.style import fixed_layout, set_title, yaxis_width
 
 MISSING_COLOUR = "#EE6677"  # red: missing and left unfilled
 FILLED_COLOUR = "#4477AA"  # blue: filled (interpolated or reconstructed)
@@ -57,7 +57,7 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
         show = np.sort(show[top])
     hidden = len(labels) - show.size
     nrows = max(show.size, 1)
-    fig = Figure(figsize=(10.0, min(2.2 + 0.16 * nrows, 14.0)), layout="constrained")
+    fig = Figure(figsize=(10.0, min(2.2 + 0.16 * nrows, 14.0)))
     ax = fig.subplots()
     only_missing = missing & ~filled
     for row, j in enumerate(show):
@@ -93,8 +93,15 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
                 transform=ax.transAxes, ha="center", va="center")
     set_title(ax, title, fontsize=9.5)
     ax.grid(True, axis="x", alpha=0.3)
+    pad = 0.04  # inches from the figure's edge, as constrained layout's
     fig.legend(handles=[Patch(color=MISSING_COLOUR, label="missing (not filled)"),
                         Patch(color=FILLED_COLOUR, label="filled"),
                         Line2D([], [], color="0.6", lw=0.8, label="sentence start")],
-               loc="outside lower center", ncols=3, fontsize=8, frameon=False)
+               loc="lower center", bbox_to_anchor=(0.5, pad / fig.get_figheight()), ncols=3,
+               fontsize=8, frameon=False)
+    # fixed layout (inches): the title's lines above, the x axis and the legend's row below,
+    # the measured marker labels and axis label on the left
+    margins = {"right": 0.15, "bottom": 0.77, "top": 0.1 + 0.155 * (title.count("\n") + 1)}
+    fixed_layout(fig, left=0.5, **margins)
+    fixed_layout(fig, left=yaxis_width(ax) + pad, **margins)
     return fig
