@@ -161,6 +161,18 @@ def test_figure(tmp_path):
         plot_paper_comparison(t.drop(columns="verdict"))
 
 
+def test_figure_layout_keeps_every_text_inside_and_apart():
+    """The figure's fixed layout (no constrained layout): the shared geometric check of the
+    figure tests, with Table I and without it."""
+    from test_plots import assert_laid_out
+
+    from facemotion.plots.comparison import plot_paper_comparison
+
+    t = compare(paper_like_inputs())
+    assert_laid_out(plot_paper_comparison(t))
+    assert_laid_out(plot_paper_comparison(t[t["where"] != "Table I"]))
+
+
 def test_eyelid_copy_coefficient_in_either_orientation():
     inp = paper_like_inputs()
     st = "S1: marker 13's fit coefficient on 11 (basis of ten)"

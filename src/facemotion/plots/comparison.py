@@ -7,7 +7,13 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from facemotion.plots.style import require_columns, set_title
+from facemotion.plots.style import (
+    fixed_layout,
+    require_columns,
+    save_renderer,
+    set_title,
+    yaxis_width,
+)
 
 VERDICT_COLOUR = {"reproduced": "#228833", "same shape": "#CCBB44", "differs": "#EE6677",
                   "not measured": "#BBBBBB"}
@@ -40,7 +46,7 @@ def plot_paper_comparison(table: pd.DataFrame) -> Figure:
     num = numeric_rows(table)
     ti = table[table["where"] == "Table I"].copy()
     n = max(len(num), 1)
-    fig = Figure(figsize=(12.0, 1.6 + 0.24 * n), layout="constrained")
+    fig = Figure(figsize=(12.0, 1.6 + 0.24 * n))
     ax, bx = fig.subplots(1, 2, width_ratios=[2.4, 1.0])
     y = np.arange(len(num))[::-1]
     ax.axvspan(1 / 1.5, 1.5, color="0.9", zorder=0)
@@ -88,13 +94,30 @@ def plot_paper_comparison(table: pd.DataFrame) -> Figure:
         bx.set_yticks(np.arange(len(order))[::-1], order)
         bx.set_xlabel("cells (first 16 pivots)")
         bx.set_xlim(0, max(left.max(), 1))
-        bx.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncols=2)
+        table_legend = bx.legend(fontsize=7.5, loc="lower center", ncols=2)
     else:
+        table_legend = None
         bx.text(0.5, 0.5, "Table I not measured", ha="center", va="center",
                 transform=bx.transAxes)
         bx.set_axis_off()
     set_title(bx, "L&M Table I: same marker (green),\nsame region (yellow), other (red)",
                  fontsize=9)
+    w, h = fig.get_size_inches()
+    pad = 0.04  # inches from the figure's edges, as constrained layout's
     fig.suptitle("The papers' quantitative statements against this study "
-                 "(tables/paper_comparison.tsv)", fontsize=11)
+                 "(tables/paper_comparison.tsv)", fontsize=11, y=1 - 0.08 / h, va="top")
+    # fixed layout (inches): the suptitle and the right panel's two-line title above, the x
+    # axes below and under them Table I's legend (its height measured), the statements (the
+    # left panel's tick labels) and Table I's dataset names measured left of each panel
+    renderer = save_renderer(fig)
+    legend_w, legend_h = ((table_legend.get_window_extent(renderer).size / fig.dpi)
+                          if table_legend is not None else (0.0, 0.0))
+    margins = {"right": 0.15, "top": 0.7, "bottom": 0.5 + (legend_h + 0.12 if legend_h else 0)}
+    fixed_layout(fig, left=4.0, wgap=0.6, **margins)
+    fixed_layout(fig, left=yaxis_width(ax) + pad,
+                 wgap=(yaxis_width(bx) if bx.axison else 0.0) + 0.25, **margins)
+    if table_legend is not None:  # under the x axis, centred on the panel, inside the figure
+        box = bx.get_position()
+        x = min((box.x0 + box.x1) / 2, 1 - (pad + legend_w / 2) / w)
+        table_legend.set_bbox_to_anchor((x, pad / h), transform=fig.transFigure)
     return fig

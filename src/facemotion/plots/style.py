@@ -80,12 +80,27 @@ def fixed_layout(fig, *, left: float, right: float, bottom: float, top: float,
                         wspace=wgap / cell_w, hspace=hgap / cell_h)
 
 
+def save_renderer(fig):
+    """The renderer that saving ``fig`` as PNG (``provenance.figure_bytes``) draws with, for
+    measuring texts before the figure is saved: the figure gets an Agg canvas at the saved
+    resolution, whose renderer ``savefig`` reuses, and with it matplotlib's cache of the text
+    extents measured here (on another renderer every text is laid out again at the draw)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from facemotion.provenance import FIGURE_DPI
+
+    if not isinstance(fig.canvas, FigureCanvasAgg):
+        FigureCanvasAgg(fig)
+    fig.set_dpi(FIGURE_DPI)
+    return fig.canvas.get_renderer()
+
+
 def yaxis_width(*axes) -> float:
     """Inches the y axes' tick labels and labels take left of their frames (the widest of
     ``axes``), measured at the figure's current layout: the one variable a fixed layout
     measures (tick labels are 1 to 5 characters wide), axis by axis and once, instead of
     constrained layout's passes over every text of the figure."""
-    renderer = axes[0].figure._get_renderer()
+    renderer = save_renderer(axes[0].figure)
     room = 0.0
     for ax in axes:
         bb = ax.yaxis.get_tightbbox(renderer)
@@ -118,7 +133,7 @@ def keep_legible(fig, texts, inside=None, avoid=()) -> list:
     annotations' positions), not a whole draw: saving the figure draws it anyway."""
     from matplotlib.text import Annotation
 
-    renderer = fig._get_renderer()
+    renderer = save_renderer(fig)
     engine = fig.get_layout_engine()
     if engine is not None:
         engine.execute(fig)

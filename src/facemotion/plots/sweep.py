@@ -15,6 +15,7 @@ from facemotion.plots.style import (
     fixed_layout,
     plain_log_labels,
     require_columns,
+    save_renderer,
     set_title,
     yaxis_width,
 )
@@ -76,7 +77,7 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
                         bbox_to_anchor=(1 - pad / w, 1 - pad / h))
     # fixed layout (inches): the legend's measured width (the marker labels vary) right of the
     # axes, the two-line title above, the measured y tick labels and label on the left
-    legend_w = legend.get_window_extent(fig._get_renderer()).width / fig.dpi
+    legend_w = legend.get_window_extent(save_renderer(fig)).width / fig.dpi
     margins = {"right": legend_w + pad + 0.1, "bottom": 0.48, "top": 0.42}
     fixed_layout(fig, left=0.6, **margins)
     fixed_layout(fig, left=yaxis_width(ax) + 0.05, **margins)
