@@ -12,6 +12,7 @@ from facemotion.plots.style import (
     require_columns,
     save_renderer,
     set_title,
+    ticks_in_view,
     yaxis_width,
 )
 
@@ -116,6 +117,7 @@ def plot_paper_comparison(table: pd.DataFrame) -> Figure:
     fixed_layout(fig, left=4.0, wgap=0.6, **margins)
     fixed_layout(fig, left=yaxis_width(ax) + pad,
                  wgap=(yaxis_width(bx) if bx.axison else 0.0) + 0.25, **margins)
+    ticks_in_view(ax, bx)
     if table_legend is not None:  # under the x axis, centred on the panel, inside the figure
         box = bx.get_position()
         x = min((box.x0 + box.x1) / 2, 1 - (pad + legend_w / 2) / w)

@@ -18,6 +18,7 @@ from facemotion.plots.style import (
     plain_log_labels,
     require_tables,
     set_title,
+    ticks_in_view,
     yaxis_width,
 )
 
@@ -131,6 +132,7 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
     fixed_layout(fig, left=0.6, wgap=0.96, **margins)
     fixed_layout(fig, left=yaxis_width(ax_abs) + 0.05, wgap=yaxis_width(ax_rel) + 0.2,
                  **margins)
+    ticks_in_view(ax_abs, ax_rel)
     return fig
 
 
@@ -176,4 +178,5 @@ def plot_trajectory(time_s, measured, predicted, marker: str, sentence: str, k: 
                "top": 0.52 + 0.2 * title.count("\n")}
     fixed_layout(fig, left=0.6, **margins)
     fixed_layout(fig, left=yaxis_width(*axes) + 0.05, **margins)
+    ticks_in_view(*axes)
     return fig

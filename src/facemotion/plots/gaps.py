@@ -10,7 +10,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from facemotion.errors import InputError
-from facemotion.plots.style import fixed_layout, set_title, yaxis_width
+from facemotion.plots.style import fixed_layout, set_title, ticks_in_view, yaxis_width
 
 MISSING_COLOUR = "#EE6677"  # red: missing and left unfilled
 FILLED_COLOUR = "#4477AA"  # blue: filled (interpolated or reconstructed)
@@ -104,4 +104,5 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
     margins = {"right": 0.15, "bottom": 0.77, "top": 0.1 + 0.155 * (title.count("\n") + 1)}
     fixed_layout(fig, left=0.5, **margins)
     fixed_layout(fig, left=yaxis_width(ax) + pad, **margins)
+    ticks_in_view(ax)
     return fig

@@ -17,6 +17,7 @@ from facemotion.plots.style import (
     plain_log_labels,
     require_tables,
     set_title,
+    ticks_in_view,
     yaxis_width,
 )
 
@@ -101,6 +102,7 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     margins = {"right": 0.1, "top": 0.25, "bottom": 0.48 + (0.2 if zeros else 0.0)}
     fixed_layout(fig, left=0.85, **margins)
     fixed_layout(fig, left=yaxis_width(ax) + 0.05, **margins)
+    ticks_in_view(ax)
     # Labels of the last pivots below ``annotate_below``: below-left of a point near the right
     # edge, above-right of the others (where a falling curve leaves room); datasets in turn;
     # kept only where legible.

@@ -109,6 +109,33 @@ def yaxis_width(*axes) -> float:
     return room
 
 
+def ticks_in_view(*axes) -> None:
+    """Each axis's ticks (major and minor) fixed at the ones its locator places inside the
+    view, once the layout is final (the locators pick their ticks for the axes' size).
+
+    Locators also return ticks beyond the limits (a log axis's minor locator, whole decades),
+    and at every draw matplotlib makes a tick object (two marks, a grid line, two labels) for
+    each before dropping the ones out of view. The same ticks are drawn, as before."""
+    import numpy as np
+    from matplotlib.ticker import FixedLocator, NullLocator
+
+    for ax in axes:
+        ax.apply_aspect()
+        ax.get_xlim(), ax.get_ylim()  # autoscaled limits, if pending
+        for axis in (ax.xaxis, ax.yaxis):
+            transform = axis.get_transform()
+            lo, hi = sorted(transform.transform(np.asarray(axis.get_view_interval())))
+            tol = 1e-10 * (hi - lo)  # as matplotlib's own test of a tick in view
+            for ticker in (axis.major, axis.minor):
+                if isinstance(ticker.locator, (NullLocator, FixedLocator)):
+                    continue
+                locs = np.asarray(ticker.locator(), dtype=float)
+                t = transform.transform(locs) if locs.size else locs
+                keep = locs[(t >= lo - tol) & (t <= hi + tol)]
+                ticker.locator = FixedLocator(keep.tolist())
+                ticker.locator.set_axis(axis)
+
+
 def plain_log_labels(axis) -> None:
     """Plain numbers (0.5, 1, 2) on a log axis; minor ticks labelled when few decades show."""
     axis.set_major_formatter(_PlainLogFormatter(labelOnlyBase=False))

@@ -17,6 +17,7 @@ from facemotion.plots.style import (
     require_columns,
     save_renderer,
     set_title,
+    ticks_in_view,
     yaxis_width,
 )
 
@@ -81,4 +82,5 @@ def plot_sentence_sweep(df: pd.DataFrame, n_orders: int = 12) -> Figure:
     margins = {"right": legend_w + pad + 0.1, "bottom": 0.48, "top": 0.42}
     fixed_layout(fig, left=0.6, **margins)
     fixed_layout(fig, left=yaxis_width(ax) + 0.05, **margins)
+    ticks_in_view(ax)
     return fig
