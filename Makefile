@@ -59,13 +59,11 @@ test: venv
 bench: venv
 	$(BIN)/python benchmarks/run_all.py
 
-# API reference from the docstrings -> docs/api/index.html (git-ignored). Every module is named,
-# since the package's __all__ lists only the top-level API; but not sentence_sweep and
-# lips.modes, which the packages add themselves (their names are also public functions there).
+
+# API reference from the docstrings -> docs/api/index.html (git-ignored): the package (its
+# __all__ is the top-level API) and each sub-package with every module in it.
 docs: venv
-	$(BIN)/pdoc -o docs/api facemotion $$(cd src && find facemotion -name '*.py' \
-	  ! -name '__init__.py' ! -name '__main__.py' | sed 's/\.py$$//; s,/,.,g' | sort \
-	  | grep -v -x -e facemotion.sentence_sweep -e facemotion.lips.modes)
+	$(BIN)/pdoc -o docs/api facemotion $$(cd src && find facemotion -mindepth 1 -maxdepth 1 -type d ! -name __pycache__ | sort | tr / .)
 
 lint: venv
 	$(BIN)/snakemake --lint

@@ -90,7 +90,7 @@ def child(args: list[str]) -> tuple[dict, float]:
 # ------------------------------------------------------------------------------------ cases
 
 def case_peak(threads):
-    from facemotion.gram import gemm_rate
+    from facemotion.ranking.gram import gemm_rate
 
     p1 = gemm_rate(1)
     pt = gemm_rate(threads)
@@ -104,8 +104,8 @@ def case_rank10x(threads, reps, peak):
     from bench_qr import median_times, synthetic
     from threadpoolctl import threadpool_limits
 
-    from facemotion.gram import gram, gram_flops
-    from facemotion.pivoted_qr import rank_markers
+    from facemotion.ranking.gram import gram, gram_flops
+    from facemotion.ranking.routes import rank_markers
 
     A, labels, _ = synthetic(2000, seed=1)
     rows, n = A.shape
@@ -134,7 +134,7 @@ def case_rank10x(threads, reps, peak):
 def _dense_trc(frames, gaps_s, path: Path):
     from dense_face import dense_recording
 
-    from facemotion.readers import write_trc
+    from facemotion.io.trc import write_trc
 
     if not path.exists():
         truth, gapped = dense_recording(frames, gaps_s=gaps_s, rate=30.0, seed=0)
@@ -291,7 +291,8 @@ def worker(argv):
     if kind == "load":
         import logging
 
-        from facemotion import gaps, loading, readers
+        from facemotion.ingest import gaps, loading
+        from facemotion.io import registry as readers
         trc, threads = argv[1], int(argv[2])
         os.environ["OPENBLAS_NUM_THREADS"] = str(threads)
         spent = {"read_s": 0.0, "fill_s": 0.0}
@@ -323,8 +324,8 @@ def worker(argv):
         from dense_face import dense_recording
         from svd_fill_baseline import fill_gaps_svd
 
-        from facemotion.gaps import fill_gaps
-        from facemotion.readers import read_trc
+        from facemotion.ingest.gaps import fill_gaps
+        from facemotion.io.trc import read_trc
         trc = argv[1]
         rec = read_trc(trc)
         frames = rec.n_frames
@@ -341,25 +342,26 @@ def worker(argv):
             return float(np.sqrt(np.mean((x.points - truth.points)[miss] ** 2)))
         return {"new_s": t_new, "old_s": t_old, "new_err": err(new), "old_err": err(old)}
     if kind == "read":
-        import facemotion.readers as readers
+        from facemotion.io import base as io_base
+        from facemotion.io.trc import read_trc
         trc, mode = argv[1], argv[2]
         base = vm_hwm_mib()
         if mode == "exact":
-            readers.FAST_TEXT = False
+            io_base.FAST_TEXT = False
         t0 = time.perf_counter()
-        rec = readers.read_trc(trc)
+        rec = read_trc(trc)
         wall = time.perf_counter() - t0
         return {"wall_s": wall, "baseline_mib": base, "frames": rec.n_frames}
     if kind == "write":
-        from facemotion.displacement_file import DisplacementsWriter
+        from facemotion.ingest.displacement_file import DisplacementsWriter
         path, rows, n = argv[1], int(argv[2]), int(argv[3])
         dense = len(argv) > 4
         return write_synthetic_A(DisplacementsWriter, path, rows, n, dense)
     if kind == "rank":
-        from facemotion.displacement_file import open_displacements
-        from facemotion.gram import gemm_rate, gram, gram_flops
-        from facemotion.pivoted_qr import rank_markers
-        from facemotion.prediction import error_curve
+        from facemotion.ingest.displacement_file import open_displacements
+        from facemotion.ranking.gram import gemm_rate, gram, gram_flops
+        from facemotion.ranking.routes import rank_markers
+        from facemotion.regions.prediction import error_curve
         path, threads, k_max = argv[1], int(argv[2]), int(argv[3]) or None
         t0 = time.perf_counter()
         f = open_displacements(path)
@@ -384,10 +386,10 @@ def worker(argv):
     if kind == "talker":
         import logging
 
-        from facemotion.dense_talker import simulate_dense, write_dense_subject
-        from facemotion.loading import load_dataset
-        from facemotion.pivoted_qr import rank_markers, route_accuracy
-        from facemotion.synth import HEAD_LABELS
+        from facemotion.ingest.loading import load_dataset
+        from facemotion.ranking.routes import rank_markers, route_accuracy
+        from facemotion.virtual.dense import simulate_dense, write_dense_subject
+        from facemotion.virtual.talker import HEAD_LABELS
         threads, n_sent = int(argv[1]), int(argv[2])
         logging.disable(logging.INFO)
         t0 = time.perf_counter()
@@ -414,7 +416,7 @@ def worker(argv):
         import scipy.linalg
         from threadpoolctl import threadpool_limits
 
-        from facemotion.displacement_file import open_displacements
+        from facemotion.ingest.displacement_file import open_displacements
         path, threads = argv[1], int(argv[2])
         f = open_displacements(path)
         S = len(f.sentences)
@@ -476,7 +478,7 @@ def main(argv=None) -> int:
     print(f"threads {args.threads}, reps {args.reps}, load average at start {load:.2f} "
           f"on {os.cpu_count()} CPUs" + (" (BUSY: numbers are provisional)"
                                           if load > 0.5 * (os.cpu_count() or 1) else ""))
-    from facemotion.gram import gemm_rate
+    from facemotion.ranking.gram import gemm_rate
 
     peak = case_peak(args.threads) if "peak" in args.only else gemm_rate(args.threads)
     if "rank10x" in args.only:

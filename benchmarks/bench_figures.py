@@ -28,10 +28,10 @@ import pandas as pd  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from facemotion.animation import FaceAnimation  # noqa: E402
-from facemotion.face_mesh import read_face_mesh  # noqa: E402
+from facemotion.plots.animation import FaceAnimation  # noqa: E402
+from facemotion.plots.face_mesh import read_face_mesh  # noqa: E402
 from facemotion.plots.regions import plot_region_maps  # noqa: E402
-from facemotion.provenance import figure_bytes  # noqa: E402
+from facemotion.plots.save import figure_bytes  # noqa: E402
 
 
 def shared_data() -> Path:

@@ -6,7 +6,7 @@ Synthetic displacement matrices: 57 markers, 50 sentences, a few smooth sources 
 0.5 mm noise; paper scale ~30,000 rows (3 x 10,000 frames) and 10x the frames.  Ours and the
 baselines run with the same number of BLAS threads (``--threads``, threadpoolctl), alternately,
 and the times are medians (time.perf_counter); this machine's GEMM rate at that thread count is
-measured at the start and the end, and the A^T A pass (``facemotion.gram``) is reported as a
+measured at the start and the end, and the A^T A pass (``facemotion.ranking.gram``) is reported as a
 fraction of it. A "pass" is one A^T A over all the data; one TSQR pass is also timed for
 reference.  Writes benchmarks/out/bench_qr.tsv; with --readme, the README's speed table
 (between the bench-qr markers); with --strict exits 1 if a target is missed.
@@ -28,18 +28,11 @@ from threadpoolctl import threadpool_limits
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from rule_times import update_readme  # noqa: E402
 
-from facemotion.gram import gemm_rate, gram, gram_flops  # noqa: E402
-from facemotion.pivoted_qr import rank_markers, tsqr_r  # noqa: E402
-from facemotion.prediction import (  # noqa: E402
-    error_curve,
-    error_curve_naive,
-    error_curve_rms,
-)
-from facemotion.sentence_sweep import (  # noqa: E402
-    sentence_sweep,
-    sentence_sweep_naive,
-    stability,
-)
+from facemotion.ranking.gram import gemm_rate, gram, gram_flops  # noqa: E402
+from facemotion.ranking.qr import tsqr_r
+from facemotion.ranking.routes import rank_markers  # noqa: E402
+from facemotion.ranking.stability import sentence_sweep, sentence_sweep_naive, stability
+from facemotion.regions.prediction import error_curve, error_curve_naive, error_curve_rms
 
 N_MARKERS = 57
 N_SENTENCES = 50
@@ -194,7 +187,7 @@ _ROWS = [  # README row: benchmark, what, baseline, how the value reads
     ("ranking_auto_vs_scipy_pivoted_qr", "marker ranking (one A^T A pass, then LAPACK pivoted "
      "Cholesky; same pivots asserted)", "`scipy.linalg.qr(A, mode=\"r\", pivoting=True)`, "
      "same BLAS threads", "x"),
-    ("AtA_pass_fraction_of_gemm_peak", "that A^T A pass (`facemotion.gram`, syrk over row "
+    ("AtA_pass_fraction_of_gemm_peak", "that A^T A pass (`facemotion.ranking.gram`, syrk over row "
      "blocks)", "the machine's GEMM rate, same threads, same run", "peak"),
     ("sentence_sweep_vs_refactor_each_step", "whole sentence sweep (R updated sentence by "
      "sentence)", "scipy pivoted QR of all data at every step", "x"),

@@ -34,17 +34,18 @@ def _figures(study: Path):
     import numpy as np
     import pandas as pd
 
-    from facemotion.displacements import load_displacements, split_roles
-    from facemotion.pivoted_qr import rank_for_study
+    from facemotion.ingest.displacement_file import load_displacements
+    from facemotion.ingest.displacements import split_roles
     from facemotion.plots.comparison import plot_paper_comparison
-    from facemotion.plots.errors import plot_error_curves, plot_trajectory
+    from facemotion.plots.error_curves import plot_error_curves, plot_trajectory
     from facemotion.plots.gaps import plot_gaps
     from facemotion.plots.rank import plot_r_values
     from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
     from facemotion.plots.selection import plot_selection_agreement
     from facemotion.plots.sweep import plot_sentence_sweep
-    from facemotion.prediction import fit_coefficients, predict
-    from facemotion.selector import selection_table
+    from facemotion.ranking.routes import rank_for_study
+    from facemotion.regions.prediction import fit_coefficients, predict
+    from facemotion.regions.selector import selection_table
 
     # the default study's order (S1, S2a, S2b, then the starred ones)
     datasets = sorted((p.parent.parent.name for p in study.glob("*/data/displacements.npz")),
@@ -128,7 +129,7 @@ def run_once(study: Path, only: set[str] | None, out_dir: Path | None,
     import matplotlib
 
     matplotlib.use("Agg")
-    from facemotion.provenance import figure_bytes
+    from facemotion.plots.save import figure_bytes
 
     figures = [f for f in _figures(study) if only is None or f[0] in only]
     # warm-up: fonts, caches, lazy imports (every job pays them once; not per figure)

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.lips.mesh import read_obj
-from facemotion.recording import Recording
+from facemotion.io.obj import read_obj
+from facemotion.io.recording import Recording
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("FACEMOTION_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -2,12 +2,14 @@
 
 import numpy as np
 
-from facemotion.animation import FaceAnimation, animation_page, frame_indices, write_animation
-from facemotion.displacements import load_displacements, split_roles
-from facemotion.pivoted_qr import rank_for_study
-from facemotion.prediction import predict
-from facemotion.provenance import atomic_write_bytes, save_figure, sidecar_for_existing
-from facemotion.snakemake_adapter import figure_paths, run_per_dataset
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.ingest.displacements import split_roles
+from facemotion.io.atomic import atomic_write_bytes
+from facemotion.plots.animation import FaceAnimation, animation_page, frame_indices, write_animation
+from facemotion.ranking.routes import rank_for_study
+from facemotion.regions.prediction import predict
+from facemotion.study.adapter import figure_paths, run_per_dataset
+from facemotion.study.provenance import save_figure, sidecar_for_existing
 
 
 def main(sm, log, prov):

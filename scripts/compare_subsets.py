@@ -1,9 +1,10 @@
 """How far from optimal is the pivoted-QR choice of k markers? (beyond the paper)"""
 
-from facemotion.displacements import load_displacements, split_roles
-from facemotion.provenance import write_table
-from facemotion.snakemake_adapter import run_per_dataset
-from facemotion.subset_optimality import subset_optimality
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.ingest.displacements import split_roles
+from facemotion.regions.optimality import subset_optimality
+from facemotion.study.adapter import run_per_dataset
+from facemotion.study.provenance import write_table
 
 
 def main(sm, log, prov):

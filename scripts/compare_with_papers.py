@@ -1,9 +1,9 @@
 """The papers' quantitative statements beside ours: paper_comparison.tsv and its figure."""
 
-from facemotion.paper_comparison import compare, read_inputs
+from facemotion.papers.comparison import compare, read_inputs
 from facemotion.plots.comparison import plot_paper_comparison
-from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.study.adapter import figure_paths, run_step
+from facemotion.study.provenance import save_figure, write_table
 
 
 def main(sm, log, prov):

@@ -4,13 +4,14 @@ the error curves of all datasets overlaid."""
 import numpy as np
 import pandas as pd
 
-from facemotion.displacements import load_displacements, split_roles
 from facemotion.errors import InputError
-from facemotion.pivoted_qr import rank_for_study
-from facemotion.plots.errors import plot_error_curves, plot_trajectory
-from facemotion.prediction import error_curve, predict
-from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import across_provenance, figure_paths, run_per_dataset
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.ingest.displacements import split_roles
+from facemotion.plots.error_curves import plot_error_curves, plot_trajectory
+from facemotion.ranking.routes import rank_for_study
+from facemotion.regions.prediction import error_curve, predict
+from facemotion.study.adapter import across_provenance, figure_paths, run_per_dataset
+from facemotion.study.provenance import save_figure, write_table
 
 
 def main(sm, log, prov):

@@ -1,9 +1,9 @@
 """Find markers that copy others, over the whole recording or only during a filled gap."""
 
-from facemotion.displacements import load_displacements
-from facemotion.provenance import write_table
-from facemotion.redundancy import find_redundant_markers, longest
-from facemotion.snakemake_adapter import run_per_dataset
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.regions.redundancy import find_redundant_markers, longest
+from facemotion.study.adapter import run_per_dataset
+from facemotion.study.provenance import write_table
 
 
 def main(sm, log, prov):

@@ -6,13 +6,13 @@ own, with the wildcard lip_subject)."""
 import numpy as np
 
 from facemotion.errors import InputError
-from facemotion.lips.plots import plot_mesh, plot_modes
-from facemotion.lips.study import grid_lip_study, run_virtual
+from facemotion.io.trc import read_trc
+from facemotion.lips.pipeline import grid_lip_study, run_virtual
 from facemotion.lips.virtual import make_virtual_talker
-from facemotion.provenance import save_figure, write_table
-from facemotion.readers import read_trc
-from facemotion.snakemake_adapter import figure_paths, run_per_dataset
-from facemotion.subjects import parse_sentences
+from facemotion.plots.lips import plot_mesh, plot_modes
+from facemotion.study.adapter import figure_paths, run_per_dataset
+from facemotion.study.provenance import save_figure, write_table
+from facemotion.study.sheet import parse_sentences
 
 
 def main(sm, log, prov):

@@ -1,12 +1,13 @@
 """X = R11^-1 R12 for k main markers, region maps and orthogonal-direction maps (Figs. 4-7)."""
 
-from facemotion.displacements import load_displacements, split_roles
-from facemotion.face_mesh import read_face_mesh
-from facemotion.pivoted_qr import rank_for_study
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.ingest.displacements import split_roles
+from facemotion.plots.face_mesh import read_face_mesh
 from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
-from facemotion.prediction import fit_coefficients
-from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_per_dataset
+from facemotion.ranking.routes import rank_for_study
+from facemotion.regions.prediction import fit_coefficients
+from facemotion.study.adapter import figure_paths, run_per_dataset
+from facemotion.study.provenance import save_figure, write_table
 
 
 def main(sm, log, prov):

@@ -5,13 +5,13 @@ datasets (e.g. S2a and S2a*, the same sentences in another order); with several 
 subjects are loaded side by side (run_per_dataset's forked workers).
 """
 
-from facemotion.copy_fill import parse_copy_markers
-from facemotion.displacements import save_displacements
-from facemotion.loading import load_dataset
+from facemotion.ingest.copy_fill import parse_copy_markers
+from facemotion.ingest.displacement_file import save_displacements
+from facemotion.ingest.loading import load_dataset
+from facemotion.ingest.validation import Limits
 from facemotion.plots.gaps import plot_gaps
-from facemotion.provenance import save_figure, sidecar_for_existing, write_table
-from facemotion.snakemake_adapter import figure_paths, run_per_dataset
-from facemotion.validation import Limits
+from facemotion.study.adapter import figure_paths, run_per_dataset
+from facemotion.study.provenance import save_figure, sidecar_for_existing, write_table
 
 _TAKES = {"subject": None, "takes": {}}  # the takes of the subject being loaded
 

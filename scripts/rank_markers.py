@@ -4,13 +4,15 @@ markers of all datasets together (Table I) and Fig. 2 overlaid."""
 import numpy as np
 import pandas as pd
 
-from facemotion.displacements import load_displacements, split_roles
-from facemotion.pivoted_qr import epsilon_rank, rank_for_study, ranking_summary, route_accuracy
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.ingest.displacements import split_roles
 from facemotion.plots.rank import plot_r_values
 from facemotion.plots.selection import plot_selection_agreement
-from facemotion.provenance import save_figure, write_table
-from facemotion.selector import selection_table
-from facemotion.snakemake_adapter import across_provenance, figure_paths, run_per_dataset
+from facemotion.ranking.epsilon_rank import epsilon_rank
+from facemotion.ranking.routes import rank_for_study, ranking_summary, route_accuracy
+from facemotion.regions.selector import selection_table
+from facemotion.study.adapter import across_provenance, figure_paths, run_per_dataset
+from facemotion.study.provenance import save_figure, write_table
 
 
 def main(sm, log, prov):

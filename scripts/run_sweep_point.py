@@ -2,10 +2,11 @@
 
 import pandas as pd
 
-from facemotion.displacements import load_displacements, split_roles
-from facemotion.provenance import write_table
-from facemotion.snakemake_adapter import run_step
-from facemotion.sweeps import evaluate_point
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.ingest.displacements import split_roles
+from facemotion.study.adapter import run_step
+from facemotion.study.provenance import write_table
+from facemotion.study.sweeps import evaluate_point
 
 
 def main(sm, log, prov):

@@ -2,10 +2,11 @@
 
 import numpy as np
 
+from facemotion.io.npz import npz_bytes
+from facemotion.io.trc import write_trc
 from facemotion.lips.virtual import make_virtual_talker
-from facemotion.provenance import npz_bytes, write_artifact
-from facemotion.readers import write_trc
-from facemotion.snakemake_adapter import run_step
+from facemotion.study.adapter import run_step
+from facemotion.study.provenance import write_artifact
 
 
 def main(sm, log, prov):

@@ -3,11 +3,11 @@ talker (designs D468, D5023) in the subject's format, plus its mesh. One job for
 
 from pathlib import Path
 
-from facemotion.dense_talker import DENSE_DESIGNS, simulate_dense, write_dense_subject
-from facemotion.provenance import write_artifact
-from facemotion.readers import write_c3d
-from facemotion.snakemake_adapter import run_per_dataset
-from facemotion.synth import simulate_subject, truth_npz_bytes
+from facemotion.io.c3d import write_c3d
+from facemotion.study.adapter import run_per_dataset
+from facemotion.study.provenance import write_artifact
+from facemotion.virtual.dense import DENSE_DESIGNS, simulate_dense, write_dense_subject
+from facemotion.virtual.talker import simulate_subject, truth_npz_bytes
 
 
 def main(sm, log, prov):

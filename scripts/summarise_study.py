@@ -1,13 +1,13 @@
 """The study's closing summary: where the results are, epsilon-ranks, first pivots, Table 1."""
 
-from facemotion.snakemake_adapter import run_step
+from facemotion.study.adapter import run_step
 
 
 def main(sm, log, prov):
     import pandas as pd
 
-    from facemotion.provenance import write_artifact
-    from facemotion.study import study_summary
+    from facemotion.study.provenance import write_artifact
+    from facemotion.study.summary import study_summary
 
     p = sm.params
     rank = selected = None

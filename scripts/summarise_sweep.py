@@ -3,8 +3,8 @@
 import pandas as pd
 
 from facemotion.plots.cross_subject import plot_sweep_summary
-from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_step
+from facemotion.study.adapter import figure_paths, run_step
+from facemotion.study.provenance import save_figure, write_table
 
 
 def main(sm, log, prov):

@@ -3,9 +3,9 @@
 import pandas as pd
 
 from facemotion.plots.cross_subject import plot_talkers
-from facemotion.provenance import save_figure, write_table
-from facemotion.snakemake_adapter import figure_paths, run_step
-from facemotion.sweeps import top_k_frequency
+from facemotion.study.adapter import figure_paths, run_step
+from facemotion.study.provenance import save_figure, write_table
+from facemotion.study.sweeps import top_k_frequency
 
 NAMED = {"40": "lower_lip_40", "56": "jaw_56", "34": "left_corner_34", "38": "right_corner_38",
          "36": "upper_lip_36"}

@@ -1,10 +1,11 @@
 """Stability of R against the number of sentences (paper Fig. 3)."""
 
-from facemotion.displacements import load_displacements, split_roles
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.ingest.displacements import split_roles
 from facemotion.plots.sweep import plot_sentence_sweep
-from facemotion.provenance import save_figure, write_table
-from facemotion.sentence_sweep import sentence_sweep, stability
-from facemotion.snakemake_adapter import figure_paths, run_per_dataset
+from facemotion.ranking.stability import sentence_sweep, stability
+from facemotion.study.adapter import figure_paths, run_per_dataset
+from facemotion.study.provenance import save_figure, write_table
 
 
 def main(sm, log, prov):

@@ -1,9 +1,9 @@
 """results/<study>/manifest.tsv: every output of the current workflow with its checksum, schema
 version and sidecar (starting from the workflow's targets, not from what lies in results/)."""
 
-from facemotion.manifest import manifest_rows, manifest_tsv
-from facemotion.provenance import atomic_write_bytes
-from facemotion.snakemake_adapter import run_step
+from facemotion.io.atomic import atomic_write_bytes
+from facemotion.study.adapter import run_step
+from facemotion.study.manifest import manifest_rows, manifest_tsv
 
 
 def main(sm, log, prov):

@@ -11,7 +11,8 @@ import pytest  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from PIL import Image  # noqa: E402
 
-from facemotion.animation import (  # noqa: E402
+from facemotion.errors import InputError  # noqa: E402
+from facemotion.plots.animation import (
     FaceAnimation,
     _fill_quads,
     _gif_durations_ms,
@@ -23,7 +24,6 @@ from facemotion.animation import (  # noqa: E402
     still_frame,
     write_animation,
 )
-from facemotion.errors import InputError  # noqa: E402
 
 
 def planar_face():

@@ -9,8 +9,9 @@ import pytest
 
 import facemotion as fm
 from facemotion import lips
-from facemotion.readers import write_csv, write_trc
-from facemotion.recording import Recording
+from facemotion.io.recording import Recording
+from facemotion.io.trc import write_trc
+from facemotion.io.wide_csv import write_csv
 
 HEAVY = ("numpy", "scipy", "pandas", "matplotlib", "snakemake", "ezc3d", "click")
 
@@ -32,24 +33,24 @@ def test_every_public_name_resolves():
         assert getattr(lips, name) is not None, name
     with pytest.raises(AttributeError):
         fm.no_such_name  # noqa: B018
-    assert fm.rank_markers.__module__ == "facemotion.pivoted_qr"
+    assert fm.rank_markers.__module__ == "facemotion.ranking.routes"
     assert fm.fit_regions.__name__ == "fit_coefficients"
 
 
 def test_functions_named_like_a_submodule_stay_functions():
-    code = ("import facemotion.lips.study, facemotion.lips.llse; "
-            "from facemotion.lips.modes import Modes; "
-            "from facemotion import lips; import facemotion.lips.modes; "
+    code = ("import facemotion.lips.pipeline, facemotion.lips.llse; "
+            "from facemotion.lips.pca import Modes; "
+            "from facemotion import lips; import facemotion.lips.pca; "
             "print(callable(lips.modes), lips.modes.__module__)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()
     assert out == ["True", "facemotion.lips"]
-    code = ("import facemotion as fm; from facemotion.sentence_sweep import stability; "
-            "import facemotion.sentence_sweep; print(callable(fm.sentence_sweep), "
+    code = ("import facemotion as fm; from facemotion.ranking.stability import stability; "
+            "import facemotion.ranking.stability; print(callable(fm.sentence_sweep), "
             "fm.sentence_sweep.__module__)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()
-    assert out == ["True", "facemotion.sentence_sweep"]
+    assert out == ["True", "facemotion.ranking.stability"]
 
 
 def _rec(frames=40, n=5, seed=0, source=""):

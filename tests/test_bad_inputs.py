@@ -32,8 +32,10 @@ import pandas as pd
 import pytest
 from standin import Names
 
-from facemotion.readers import c3d_layout, read_c3d, write_c3d, write_csv, write_trc
-from facemotion.recording import Recording
+from facemotion.io.c3d import c3d_layout, read_c3d, write_c3d
+from facemotion.io.recording import Recording
+from facemotion.io.trc import write_trc
+from facemotion.io.wide_csv import write_csv
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("FACEMOTION_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -18,8 +18,9 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.readers import read_c3d, read_recording, write_c3d
-from facemotion.recording import Recording
+from facemotion.io.c3d import read_c3d, write_c3d
+from facemotion.io.recording import Recording
+from facemotion.io.registry import read_recording
 
 SUITE_FILES = {
     "c3dorg_sample01_Eb015pi.c3d": 26, "c3dorg_sample01_Eb015vr.c3d": 26,
@@ -183,7 +184,7 @@ def test_a_file_of_model_outputs_only_is_an_error(tmp_path):
 
 
 def test_labels_known_at_parse_time_follow_the_subject_prefix():
-    from facemotion.readers import read_labels
+    from facemotion.io.registry import read_labels
 
     path = suite() / "ktk_tennis_serve_2players.c3d"
     labels = read_labels(path, "c3d", subject_prefix="Viktor")

@@ -11,8 +11,8 @@ import pytest
 from click.testing import CliRunner
 
 from facemotion.cli import cli, main
-from facemotion.readers import write_csv
-from facemotion.recording import Recording
+from facemotion.io.recording import Recording
+from facemotion.io.wide_csv import write_csv
 
 REPO = Path(__file__).resolve().parents[1]
 HEAD = ["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside", "Reye_Inside"]

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from facemotion.copy_fill import copy_fill, parse_copy_markers
 from facemotion.errors import InputError
-from facemotion.recording import Recording
+from facemotion.ingest.copy_fill import copy_fill, parse_copy_markers
+from facemotion.io.recording import Recording
 
 LABELS = ["a", "b", "c"]
 
@@ -70,9 +70,9 @@ def test_s1_through_the_loading_path(tmp_path):
     """The virtual S1 as C3D files: with the sheet's 13=11 the loading path makes A's column
     13 equal to column 11 (head coordinates, after the head alignment), and the gap report
     says so; without it, 13 cannot be filled."""
-    from facemotion.loading import load_dataset
-    from facemotion.readers import write_c3d
-    from facemotion.synth import simulate_subject
+    from facemotion.ingest.loading import load_dataset
+    from facemotion.io.c3d import write_c3d
+    from facemotion.virtual.talker import simulate_subject
 
     subj = simulate_subject("S1", seed=1, n_sentences=3, sentence_duration=(0.8, 1.0))
     paths = []

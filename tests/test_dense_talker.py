@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from facemotion.dense_talker import (
+from facemotion.errors import InputError
+from facemotion.io.obj import read_obj
+from facemotion.lips.mesh import INNER_RING
+from facemotion.virtual.dense import (
     ANATOMY_LANDMARKS,
     CANONICAL_MESH,
     FINE_VERTICES,
@@ -19,9 +22,7 @@ from facemotion.dense_talker import (
     read_canonical_mesh,
     subdivide_longest_edges,
 )
-from facemotion.errors import InputError
-from facemotion.lips.mesh import INNER_RING, read_obj
-from facemotion.synth import make_talker
+from facemotion.virtual.talker import make_talker
 
 SHARED = Path(os.environ.get("FACEMOTION_SHARED_DATA",
                              Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -126,8 +127,8 @@ def test_subdivision_refuses_fewer_vertices():
 # ---------------------------------------------------------------- the talker, planted truth
 
 def _load(paths, fmt, n_train):
-    from facemotion.loading import load_dataset
-    from facemotion.synth import HEAD_LABELS
+    from facemotion.ingest.loading import load_dataset
+    from facemotion.virtual.talker import HEAD_LABELS
 
     n = len(paths)
     return load_dataset([str(p) for p in paths], fmt, head_markers=list(HEAD_LABELS),
@@ -141,9 +142,9 @@ def test_planted_fields_are_the_rank_and_that_many_pivots_predict_every_vertex(t
     the field component D_k[:, c], so its rank is that of the planted field components (from
     the fields alone, numpy's SVD), and that many pivots of the training sentences predict
     every vertex of the held-out ones exactly; one fewer does not."""
-    from facemotion.dense_talker import simulate_dense, write_dense_subject
-    from facemotion.pivoted_qr import rank_markers
-    from facemotion.prediction import error_curve
+    from facemotion.ranking.routes import rank_markers
+    from facemotion.regions.prediction import error_curve
+    from facemotion.virtual.dense import simulate_dense, write_dense_subject
 
     subj = simulate_dense("D468", seed=3, n_sentences=8, shared_data=SHARED, noise_mm=0.0,
                           tissue_rms_mm=0.0, head_rotation_deg=0.0, head_translation_mm=0.0)
@@ -177,7 +178,7 @@ def test_loaded_displacements_are_the_planted_ones_under_head_motion(tmp_path, n
     displacements come back to C3D's float32 precision; with the talker's noise (0.08 mm per
     axis on every sample, the sentence's first frame and the six band markers the alignment
     rests on) to within 0.25 mm per axis of a 0.8 mm signal."""
-    from facemotion.dense_talker import simulate_dense, write_dense_subject
+    from facemotion.virtual.dense import simulate_dense, write_dense_subject
 
     subj = simulate_dense("D468", seed=5, n_sentences=3, shared_data=SHARED,
                           tissue_rms_mm=0.0, noise_mm=noise)
@@ -198,7 +199,7 @@ def test_fine_talker_equals_the_coarse_one_at_the_canonical_vertices():
     """The same seed: D5023's noise-free motion at V0000-V0467 is D468's at L000-L467 (the
     tissue field extended by its kernel is exact at the nodes), and a new vertex's motion lies
     between its edge's ends' (fields and tissue both smooth)."""
-    from facemotion.dense_talker import simulate_dense
+    from facemotion.virtual.dense import simulate_dense
 
     kw = dict(seed=7, n_sentences=2, shared_data=SHARED, noise_mm=0.0)
     fine = simulate_dense("D5023", **kw)
@@ -218,7 +219,7 @@ def test_fine_talker_equals_the_coarse_one_at_the_canonical_vertices():
 def test_lips_part_with_the_jaw():
     """The jaw carries the lower lip (landmarks 14, 17) and barely the upper (13, 0): the
     mouth opens instead of stretching a closed surface."""
-    from facemotion.dense_talker import simulate_dense
+    from facemotion.virtual.dense import simulate_dense
 
     t = simulate_dense("D468", n_sentences=1, shared_data=SHARED).truth
     jaw = t["fields"][0, :, 1]
@@ -228,8 +229,8 @@ def test_lips_part_with_the_jaw():
 
 @pytest.mark.parametrize("fmt", ["trc", "c3d", "openface_csv"])
 def test_written_formats_read_back(tmp_path, fmt):
-    from facemotion.dense_talker import dense_layout, simulate_dense, write_dense_subject
-    from facemotion.readers import read_recording
+    from facemotion.io.registry import read_recording
+    from facemotion.virtual.dense import dense_layout, simulate_dense, write_dense_subject
 
     subj = simulate_dense("D468", n_sentences=1, shared_data=SHARED)
     (path,) = write_dense_subject(subj, tmp_path, "D", fmt)
@@ -246,7 +247,7 @@ def test_written_formats_read_back(tmp_path, fmt):
 
 
 def test_unknown_design_and_format_are_one_line():
-    from facemotion.dense_talker import simulate_dense, write_dense_subject
+    from facemotion.virtual.dense import simulate_dense, write_dense_subject
 
     with pytest.raises(InputError, match="design 'D9'"):
         simulate_dense("D9", shared_data=SHARED)

@@ -7,11 +7,16 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from facemotion.displacement_file import DisplacementsWriter, open_displacements
-from facemotion.displacements import Displacements, load_displacements, save_displacements
 from facemotion.errors import InputError
-from facemotion.gram import gram
-from facemotion.pivoted_qr import rank_markers
+from facemotion.ingest.displacement_file import (
+    DisplacementsWriter,
+    load_displacements,
+    open_displacements,
+    save_displacements,
+)
+from facemotion.ingest.displacements import Displacements
+from facemotion.ranking.gram import gram
+from facemotion.ranking.routes import rank_markers
 
 
 def make(F=(400, 301, 350), n=23, seed=0):
@@ -163,8 +168,8 @@ def test_ranking_from_disk_holds_a_block_not_the_matrix(tmp_path):
             neutral=np.zeros((n, 3)))
     code = (
         "import sys\n"
-        "from facemotion.displacement_file import open_displacements\n"
-        "from facemotion.pivoted_qr import rank_markers\n"
+        "from facemotion.ingest.displacement_file import open_displacements\n"
+        "from facemotion.ranking.routes import rank_markers\n"
         "rk = rank_markers(open_displacements(sys.argv[1]).rows(), method='gram', threads=1)\n"
         "assert rk.n_ranked == 200\n"
         "hwm = [int(x.split()[1]) for x in open('/proc/self/status') if x.startswith('VmHWM')]\n"

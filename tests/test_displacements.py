@@ -3,14 +3,10 @@
 import numpy as np
 import pytest
 
-from facemotion.displacements import (
-    Displacements,
-    build_displacements,
-    load_displacements,
-    save_displacements,
-)
 from facemotion.errors import InputError
-from facemotion.recording import Recording
+from facemotion.ingest.displacement_file import load_displacements, save_displacements
+from facemotion.ingest.displacements import Displacements, build_displacements
+from facemotion.io.recording import Recording
 
 LABELS = ["Chin", "40", "L017"]
 

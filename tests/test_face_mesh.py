@@ -15,7 +15,7 @@ from scipy.spatial import Delaunay  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 from facemotion.errors import InputError  # noqa: E402
-from facemotion.face_mesh import (  # noqa: E402
+from facemotion.plots.face_mesh import (
     FaceMesh,
     front_facing,
     place_mesh,

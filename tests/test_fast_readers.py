@@ -5,10 +5,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from facemotion import readers
 from facemotion.errors import InputError
-from facemotion.readers import read_csv, read_trc, write_csv, write_trc
-from facemotion.recording import Recording
+from facemotion.io import base, trc, wide_csv
+from facemotion.io.recording import Recording
+from facemotion.io.trc import read_trc, write_trc
+from facemotion.io.wide_csv import read_csv, write_csv
 
 
 def rec(F=500, n=17, seed=0):
@@ -24,13 +25,13 @@ def both(fn, path, **kw):
     """(fast, exact) readings, or the error message of each."""
     out = []
     for fast in (True, False):
-        readers.FAST_TEXT = fast
+        base.FAST_TEXT = fast
         try:
             out.append(fn(path, **kw))
         except InputError as e:
             out.append(str(e))
         finally:
-            readers.FAST_TEXT = True
+            base.FAST_TEXT = True
     return out
 
 
@@ -92,9 +93,9 @@ def test_fast_path_equals_the_exact_reader(tmp_path, kind):
         fast, exact = both(fn, p)
         same(fast, exact)
         if kind == "trc":
-            taken += readers._read_trc_fast(Path(p), None) is not None
+            taken += trc._read_trc_fast(Path(p), None) is not None
         else:
-            taken += readers._read_csv_fast(Path(p)) is not None
+            taken += wide_csv._read_csv_fast(Path(p)) is not None
         if name == "as written":
             np.testing.assert_allclose(fast.points, r.points, atol=5e-7)
         if name in ("a field missing", "a word", "cut"):

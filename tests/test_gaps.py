@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.gaps import REPORT_COLUMNS, fill_gaps, gap_report
-from facemotion.recording import Recording
+from facemotion.ingest.gaps import REPORT_COLUMNS, fill_gaps, gap_report
+from facemotion.io.recording import Recording
 
 
 def sinusoid(freq, rate=120.0, F=1200, amp=5.0, phase=0.3):
@@ -166,7 +166,7 @@ def dense_face(frames, rate=30.0, seed=0, n_sources=12, noise=0.05):
     import os
     from pathlib import Path
 
-    from facemotion.lips.mesh import read_obj
+    from facemotion.io.obj import read_obj
 
     data = Path(os.environ.get("FACEMOTION_SHARED_DATA",
                                Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -206,7 +206,7 @@ def test_pca_on_a_dense_face_bounds_the_error_against_the_removed_truth():
 
 def test_pca_donors_are_the_correlated_markers():
     """With 15 donors out of 467, the fill is as good as with four times as many."""
-    from facemotion import gaps as g
+    from facemotion.ingest import gaps as g
 
     truth = dense_face(1500, seed=3)
     pts = truth.points.copy()

@@ -5,8 +5,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
-from facemotion.head_motion import align_head, rigid_fit
-from facemotion.recording import Recording
+from facemotion.ingest.head_motion import align_head, rigid_fit
+from facemotion.io.recording import Recording
 
 HEAD = ["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop"]
 
@@ -137,7 +137,7 @@ def test_collinear_frames_match_the_svd_decision():
     """The bound that spares most frames the SVD finds exactly the frames the SVD finds:
     general, near the threshold s2 / s1 = COLLINEAR_TOL on both sides, exactly collinear,
     coincident, 3 and 6 points, far from the origin."""
-    from facemotion.head_motion import COLLINEAR_TOL, _collinear_frames
+    from facemotion.ingest.head_motion import COLLINEAR_TOL, _collinear_frames
 
     rng = np.random.default_rng(7)
     frames = []

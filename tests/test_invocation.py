@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.invocation import ENV, invocation_dir, resolve_path, same_study_command
-from facemotion.study import study_name
+from facemotion.study.invocation import ENV, invocation_dir, resolve_path, same_study_command
+from facemotion.study.summary import study_name
 
 REPO = Path(__file__).resolve().parents[1]
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
@@ -196,7 +196,7 @@ def test_benchmark_sampling_interval_is_set_in_this_snakemake():
     second again, about 4 s of CPU)."""
     import snakemake.benchmark as bench
 
-    from facemotion.invocation import sample_benchmarks_every
+    from facemotion.study.invocation import sample_benchmarks_every
 
     before = bench.BENCHMARK_INTERVAL_SHORT
     try:

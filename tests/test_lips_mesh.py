@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
+from facemotion.io.obj import read_obj
 from facemotion.lips.mesh import (
     INNER_RING,
     OUTER_RING,
@@ -16,7 +17,6 @@ from facemotion.lips.mesh import (
     extents,
     lip_band,
     parametric_lip_mesh,
-    read_obj,
     triangle_areas,
     unit_scale,
 )

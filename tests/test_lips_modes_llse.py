@@ -5,7 +5,7 @@ import pytest
 
 from facemotion.errors import InputError
 from facemotion.lips.llse import LLSE, llse_dense, ppca_noise_var
-from facemotion.lips.modes import pca_covariance, pca_gram, pca_svd
+from facemotion.lips.pca import pca_covariance, pca_gram, pca_svd
 
 RNG = np.random.default_rng(11)
 # 60 frames of 45 DOF from 6 latent factors plus a little noise

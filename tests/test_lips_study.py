@@ -10,9 +10,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
+from facemotion.io.recording import Recording
 from facemotion.lips.normalise import align_rigid
-from facemotion.lips.plots import plot_mesh, plot_modes
-from facemotion.lips.study import (
+from facemotion.lips.pipeline import (
     PAPER_TABLE1,
     POINT_SETS,
     VIEWS,
@@ -23,7 +23,7 @@ from facemotion.lips.study import (
     virtual_lip_study,
 )
 from facemotion.lips.virtual import DEPTH_SHARE_TARGET, depth_share, make_virtual_talker
-from facemotion.recording import Recording
+from facemotion.plots.lips import plot_mesh, plot_modes
 
 DATA = Path(os.environ.get("FACEMOTION_SHARED_DATA",
                            Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -32,7 +32,7 @@ DATA = Path(os.environ.get("FACEMOTION_SHARED_DATA",
 def _read_trc(path: Path) -> Recording:
     """The project's TRC reader if present, else a minimal private parser (tests only)."""
     try:
-        return importlib.import_module("facemotion.readers").read_trc(path)
+        return importlib.import_module("facemotion.io.registry").read_trc(path)
     except (ImportError, AttributeError):
         lines = path.read_text().splitlines()
         rate = float(lines[2].split("\t")[0])

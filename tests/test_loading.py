@@ -5,9 +5,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
-from facemotion.loading import load_dataset, split_roles
-from facemotion.readers import write_csv
-from facemotion.recording import Recording
+from facemotion.ingest.loading import load_dataset, split_roles
+from facemotion.io.recording import Recording
+from facemotion.io.wide_csv import write_csv
 
 HEAD = ["h1", "h2", "h3", "h4"]
 
@@ -116,19 +116,19 @@ def test_datasets_of_one_subject_share_its_takes(tmp_path, monkeypatch):
     """Two datasets of the same takes in other orders (as S2a and S2a*), loaded with one
     shared ``takes`` dict: each take is read once, and each dataset is exactly what loading it
     alone gives (the shared recordings are never modified)."""
-    import facemotion.readers
+    import facemotion.io.registry
 
     files = [str(tmp_path / f"s{i}.csv") for i in range(4)]
     for i, f in enumerate(files):
         make_take(f, i, drop=("m3", 20 + i, 26 + i))
     reads = []
-    real_read = facemotion.readers.read_recording
+    real_read = facemotion.io.registry.read_recording
 
     def counting_read(path, *args, **kwargs):
         reads.append(path)
         return real_read(path, *args, **kwargs)
 
-    monkeypatch.setattr(facemotion.readers, "read_recording", counting_read)
+    monkeypatch.setattr(facemotion.io.registry, "read_recording", counting_read)
     kw = {"head_markers": HEAD, "exclude_markers": HEAD}
     designs = [{"train": [0, 1, 2], "heldout": [3]}, {"train": [3, 2, 1], "heldout": [0]}]
     shared: dict = {}
@@ -149,24 +149,24 @@ def test_datasets_of_one_subject_check_each_sentence_once(tmp_path, monkeypatch,
     """With a shared ``takes`` dict, a sentence checked clean for one dataset is not checked
     again for the next (the same results as checking it); a sentence whose check warned (an
     outlier) is checked, and warned about, again for every dataset."""
-    import facemotion.validation
+    import facemotion.ingest.validation
 
     files = [str(tmp_path / f"s{i}.csv") for i in range(4)]
     for i, f in enumerate(files):
         make_take(f, i)
-    from facemotion.readers import read_recording
+    from facemotion.io.registry import read_recording
 
     rec = read_recording(files[2], "csv")
     rec.points[60, 5] += 400.0  # one sample far from the face: an outlier
     write_csv(files[2], rec)
     checked = []
-    real_check = facemotion.validation.check_take
+    real_check = facemotion.ingest.validation.check_take
 
     def counting_check(rec, *args, **kwargs):
         checked.append(rec.source)
         return real_check(rec, *args, **kwargs)
 
-    monkeypatch.setattr(facemotion.validation, "check_take", counting_check)
+    monkeypatch.setattr(facemotion.ingest.validation, "check_take", counting_check)
     kw = {"head_markers": HEAD, "exclude_markers": HEAD}
     designs = [{"train": [0, 1, 2], "heldout": [3]}, {"train": [3, 2, 1], "heldout": [0]}]
     shared: dict = {}

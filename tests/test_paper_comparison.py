@@ -5,18 +5,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from facemotion.paper_comparison import (
-    BP_TABLE_1,
-    COLUMNS,
-    TABLE_I,
-    Inputs,
-    compare,
-    factor_verdict,
-    main,
-    read_inputs,
-    region,
-    to_markdown,
-)
+from facemotion.papers.basu_pentland import BP_TABLE_1
+from facemotion.papers.comparison import compare, main, read_inputs, to_markdown
+from facemotion.papers.lucero_munhall import TABLE_I, region
+from facemotion.papers.table import COLUMNS, Inputs, factor_verdict
 
 
 def paper_like_inputs(n_markers=57):

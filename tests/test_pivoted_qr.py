@@ -6,16 +6,10 @@ import scipy.linalg
 import scipy.linalg.interpolative as sli
 
 from facemotion.errors import InputError
-from facemotion.pivoted_qr import (
-    epsilon_rank,
-    implied_rms_per_coordinate,
-    paper_epsilon_rank,
-    pivoted_cholesky,
-    r22_norm,
-    rank_markers,
-    tsqr_r,
-    update_r,
-)
+from facemotion.ranking.epsilon_rank import epsilon_rank, paper_epsilon_rank, r22_norm
+from facemotion.ranking.qr import pivoted_cholesky, tsqr_r, update_r
+from facemotion.ranking.result import implied_rms_per_coordinate
+from facemotion.ranking.routes import rank_markers
 
 
 def correlated(F=2000, n=20, sources=5, noise=0.4, seed=0):
@@ -123,7 +117,7 @@ def test_r22_norm_against_svd_and_the_singular_value_bound():
 
 
 def test_paper_epsilon_rank_is_the_smallest_k_by_bisection(monkeypatch):
-    import facemotion.pivoted_qr as pq
+    import facemotion.ranking.epsilon_rank as pq
 
     A, labels = correlated(F=400, n=40, sources=6, noise=0.05, seed=8)
     rk = rank_markers(A, labels)
@@ -173,7 +167,7 @@ def test_normalisation_reading_on_the_papers_quoted_numbers():
 
 
 def pq_default():
-    from facemotion.pivoted_qr import DEFAULT_R_NORMALISATION
+    from facemotion.ranking.result import DEFAULT_R_NORMALISATION
 
     return DEFAULT_R_NORMALISATION
 
@@ -233,7 +227,7 @@ def test_k_max_ranks_only_the_first_pivots():
 
 
 def test_study_route_picks_randomized_only_for_many_markers_with_k_max():
-    from facemotion.pivoted_qr import RANDOMIZED_MIN_N, study_route
+    from facemotion.ranking.routes import RANDOMIZED_MIN_N, study_route
 
     assert study_route(468, "auto", 100)[0] == "auto"
     assert study_route(RANDOMIZED_MIN_N, "auto", None)[0] == "auto"
@@ -249,7 +243,7 @@ def test_study_route_picks_randomized_only_for_many_markers_with_k_max():
 def test_rank_for_study_ranks_every_marker_below_the_randomized_route(caplog):
     """k_max bounds the curves, not the Gram route's ranking: all r_kk and the epsilon-rank
     are known and equal scipy's."""
-    from facemotion.pivoted_qr import rank_for_study
+    from facemotion.ranking.routes import rank_for_study
 
     A, labels = correlated(F=300, n=30)
     with caplog.at_level("INFO", logger="facemotion"):
@@ -271,7 +265,7 @@ def test_rank_for_study_ranks_every_marker_below_the_randomized_route(caplog):
 def test_ranking_summary_with_fewer_rows_than_markers():
     """GRID-like: 2 sentences of 10 frames (first frame zero) for 80 markers. The numerical
     rank equals numpy's matrix_rank and the note says how many pivots the QR rule ranked."""
-    from facemotion.pivoted_qr import ranking_summary
+    from facemotion.ranking.routes import ranking_summary
 
     rng = np.random.default_rng(4)
     blocks = []

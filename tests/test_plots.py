@@ -13,7 +13,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from scipy.linalg import qr  # noqa: E402
 
 from facemotion.errors import InputError  # noqa: E402
-from facemotion.plots.errors import plot_error_curves, plot_trajectory  # noqa: E402
+from facemotion.plots.error_curves import plot_error_curves, plot_trajectory  # noqa: E402
 from facemotion.plots.facemap import interpolate_at, interpolate_field  # noqa: E402
 from facemotion.plots.gaps import plot_gaps, runs  # noqa: E402
 from facemotion.plots.markers import plot_markers  # noqa: E402
@@ -24,9 +24,9 @@ from facemotion.plots.regions import (  # noqa: E402
     plot_region_maps,
     region_coefficients,
 )
+from facemotion.plots.save import figure_bytes  # noqa: E402
 from facemotion.plots.selection import plot_selection_agreement, selection_counts  # noqa: E402
 from facemotion.plots.sweep import plot_sentence_sweep  # noqa: E402
-from facemotion.provenance import figure_bytes  # noqa: E402
 
 
 def face_layout(n_rings=4, per_ring=8):
@@ -644,7 +644,7 @@ def assert_laid_out(fig):
     report's resolution: every text is inside the figure; no two texts overlap (the small data
     labels a figure leaves out of its layout, ``in_layout=False``, excepted); no text outside
     the axes (tick labels, axis labels, titles, figure texts) covers a panel's frame."""
-    from facemotion.provenance import FIGURE_DPI
+    from facemotion.plots.save import FIGURE_DPI
 
     fig.set_dpi(FIGURE_DPI)
     canvas = FigureCanvasAgg(fig)

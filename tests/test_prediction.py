@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.pivoted_qr import rank_markers
-from facemotion.prediction import (
+from facemotion.ranking.routes import rank_markers
+from facemotion.regions.prediction import (
     error_curve,
     error_curve_naive,
     error_curve_rms,

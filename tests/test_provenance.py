@@ -12,12 +12,7 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from facemotion import __version__  # noqa: E402
 from facemotion.errors import InputError  # noqa: E402
-from facemotion.provenance import (  # noqa: E402
-    Provenance,
-    save_figure,
-    sidecar_path,
-    write_table,
-)
+from facemotion.study.provenance import Provenance, save_figure, sidecar_path, write_table
 
 
 def _fig():
@@ -74,11 +69,14 @@ def test_outputs_respect_the_umask(tmp_path):
     import numpy as np
     import pandas as pd
 
-    from facemotion.animation import write_animation
-    from facemotion.displacements import Displacements, save_displacements
-    from facemotion.provenance import Provenance, write_table
-    from facemotion.readers import write_c3d, write_csv, write_trc
-    from facemotion.recording import Recording
+    from facemotion.ingest.displacement_file import save_displacements
+    from facemotion.ingest.displacements import Displacements
+    from facemotion.io.c3d import write_c3d
+    from facemotion.io.recording import Recording
+    from facemotion.io.trc import write_trc
+    from facemotion.io.wide_csv import write_csv
+    from facemotion.plots.animation import write_animation
+    from facemotion.study.provenance import Provenance, write_table
 
     rec = Recording(["a", "b"], np.arange(12.0).reshape(2, 2, 3) + 1, 100.0)
     d = Displacements(np.zeros((6, 2)), ["a", "b"], ["s"], np.zeros(6), np.repeat([0, 1], 3),
@@ -109,8 +107,8 @@ def test_c3d_cut_by_the_file_size_limit_is_an_error(tmp_path):
     code = textwrap.dedent(f"""
         import errno, resource
         import numpy as np
-        from facemotion.readers import write_c3d
-        from facemotion.recording import Recording
+        from facemotion.io.c3d import write_c3d
+        from facemotion.io.recording import Recording
         resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))
         rec = Recording(["a", "b", "c"], np.ones((3000, 3, 3)), 100.0)
         try:
@@ -129,7 +127,7 @@ def test_an_input_hashed_again_gives_its_current_digest(tmp_path):
     import os
     import time
 
-    from facemotion.provenance import sha256_file
+    from facemotion.study.provenance import sha256_file
 
     f = tmp_path / "A.npz"
     f.write_bytes(b"a" * 1000)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.pivoted_qr import rank_markers
-from facemotion.prediction import error_curve_rms
-from facemotion.randomized_selection import selection_residual
+from facemotion.ranking.randomized import selection_residual
+from facemotion.ranking.routes import rank_markers
+from facemotion.regions.prediction import error_curve_rms
 
 
 def low_rank_plus_noise(rows=2100, n=2000, rank=200, decay=25.0, noise=0.05, seed=1):
@@ -62,7 +62,7 @@ def test_randomized_needs_k_max_and_auto_keeps_gram_without_it():
 def test_route_accuracy_reports_the_ratio_to_pivoted_qr(case, caplog):
     """The study's accuracy check of the randomized route equals the ratio computed here from
     the deterministic ranking of the fixture (the Gram route, scipy's pivots) and is logged."""
-    from facemotion.pivoted_qr import rank_for_study, route_accuracy
+    from facemotion.ranking.routes import rank_for_study, route_accuracy
 
     A, labels, det = case
     rk = rank_for_study(A, labels, "auto", k_max=50)

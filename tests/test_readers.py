@@ -8,17 +8,11 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.readers import (
-    read_c3d,
-    read_csv,
-    read_recording,
-    read_trc,
-    trc_frame_count,
-    write_c3d,
-    write_csv,
-    write_trc,
-)
-from facemotion.recording import Recording
+from facemotion.io.c3d import read_c3d, write_c3d
+from facemotion.io.recording import Recording
+from facemotion.io.registry import read_recording
+from facemotion.io.trc import read_trc, trc_frame_count, write_trc
+from facemotion.io.wide_csv import read_csv, write_csv
 
 
 def sample_recording(F=30, n=4, seed=1, rate=120.0):
@@ -299,7 +293,7 @@ def test_c3d_layout_matches_ezc3d_on_real_files():
     (Intel and DEC, integer and float storage, analog channels, first frame > 1)."""
     from pathlib import Path
 
-    from facemotion.readers import c3d_layout
+    from facemotion.io.c3d import c3d_layout
 
     root = Path(os.environ.get("FACEMOTION_SHARED_DATA",
                                Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -326,7 +320,7 @@ def test_c3d_layout_matches_ezc3d_on_real_files():
 def test_truncated_c3d_is_an_error(tmp_path, name, cut):
     from pathlib import Path
 
-    from facemotion.readers import c3d_layout
+    from facemotion.io.c3d import c3d_layout
 
     root = Path(os.environ.get("FACEMOTION_SHARED_DATA",
                                Path(__file__).resolve().parents[2] / "shared" / "data"))

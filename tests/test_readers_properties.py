@@ -16,15 +16,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from facemotion.errors import InputError
-from facemotion.readers import (
-    read_c3d,
-    read_csv,
-    read_trc,
-    write_c3d,
-    write_csv,
-    write_trc,
-)
-from facemotion.recording import Recording
+from facemotion.io.c3d import read_c3d, write_c3d
+from facemotion.io.recording import Recording
+from facemotion.io.trc import read_trc, write_trc
+from facemotion.io.wide_csv import read_csv, write_csv
 
 READ = {"c3d": read_c3d, "trc": read_trc, "csv": read_csv}
 WRITE = {"c3d": write_c3d, "trc": write_trc, "csv": write_csv}

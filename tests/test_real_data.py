@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from facemotion.displacements import build_displacements
-from facemotion.gaps import fill_gaps
-from facemotion.head_motion import align_head
-from facemotion.readers import read_recording
-from facemotion.recording import Recording
+from facemotion.ingest.displacements import build_displacements
+from facemotion.ingest.gaps import fill_gaps
+from facemotion.ingest.head_motion import align_head
+from facemotion.io.recording import Recording
+from facemotion.io.registry import read_recording
 
 ANIMFACE_HEAD = ["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside",
                  "Reye_Inside"]

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.pivoted_qr import epsilon_rank, rank_markers
-from facemotion.redundancy import find_redundant_markers
+from facemotion.ranking.epsilon_rank import epsilon_rank
+from facemotion.ranking.routes import rank_markers
+from facemotion.regions.redundancy import find_redundant_markers
 
 RATE = 100.0
 

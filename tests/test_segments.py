@@ -12,7 +12,8 @@ from praatio import textgrid
 from praatio.utilities.constants import Interval, Point
 
 from facemotion.errors import InputError
-from facemotion.input.segments import (
+from facemotion.ingest.loading import load_dataset
+from facemotion.ingest.segments import (
     Segment,
     cut,
     first_sample_at_or_after,
@@ -22,10 +23,9 @@ from facemotion.input.segments import (
     read_c3d_events,
     segment_subject,
 )
-from facemotion.loading import load_dataset
-from facemotion.readers import read_c3d, write_c3d
-from facemotion.recording import Recording
-from facemotion.subjects import read_subject_sheet, resolve_datasets
+from facemotion.io.c3d import read_c3d, write_c3d
+from facemotion.io.recording import Recording
+from facemotion.study.sheet import read_subject_sheet, resolve_datasets
 
 RATE = 60.0
 

@@ -17,8 +17,8 @@ import pytest
 from praatio import textgrid
 from praatio.utilities.constants import Interval
 
-from facemotion.readers import read_c3d, write_c3d
-from facemotion.recording import Recording
+from facemotion.io.c3d import read_c3d, write_c3d
+from facemotion.io.recording import Recording
 
 pytestmark = pytest.mark.workflow
 REPO = Path(__file__).resolve().parents[1]

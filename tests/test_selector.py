@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 import facemotion as fm
-from facemotion.selector import constrained_ranking
+from facemotion.regions.selector import constrained_ranking
 
 
 def data(F=300, n=8, seed=0):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.sentence_sweep import (
+from facemotion.ranking.stability import (
     sentence_rows,
     sentence_sweep,
     sentence_sweep_naive,

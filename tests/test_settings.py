@@ -8,14 +8,14 @@ import pytest
 import yaml
 
 from facemotion.errors import InputError
-from facemotion.settings import (
+from facemotion.study.settings import (
     DataCounts,
     check_lip_frames,
     check_settings,
     check_sweep,
     validate_config,
 )
-from facemotion.subjects import n_heldout
+from facemotion.study.sheet import n_heldout
 
 SCHEMA = Path(__file__).resolve().parents[1] / "workflow" / "schemas" / "config.schema.yaml"
 
@@ -124,7 +124,7 @@ def test_k_max_within_the_data_passes(config):
 def test_nan_and_infinity_in_any_setting_are_errors(tmp_path):
     """NaN passes every schema minimum and maximum (the comparisons are false), so it is
     refused before the schema: a NaN tolerance would otherwise give an epsilon-rank."""
-    from facemotion.settings import validate_config
+    from facemotion.study.settings import validate_config
 
     schema = Path(__file__).resolve().parents[1] / "workflow" / "schemas" / "config.schema.yaml"
     for config, where in (({"qr": {"tolerances_mm": [0.5, float("nan")]}}, "qr.tolerances_mm.1"),

@@ -7,7 +7,7 @@ import pytest
 from standin import Names
 
 from facemotion.errors import InputError
-from facemotion.snakemake_adapter import run_per_dataset
+from facemotion.study.adapter import run_per_dataset
 
 
 def _job(tmp_path: Path, threads: int, subjects: dict[str, str]):

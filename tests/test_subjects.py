@@ -3,7 +3,7 @@
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.subjects import (
+from facemotion.study.sheet import (
     natural_key,
     parse_sentences,
     read_subject_sheet,

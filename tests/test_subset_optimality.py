@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.subset_optimality import (
+from facemotion.regions.optimality import (
     exhaustive_subset,
     greedy_subset,
     projection_residual,

@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.manifest import build_manifest
-from facemotion.provenance import Provenance, write_artifact, write_table
-from facemotion.sweeps import expand_grid, settled_after, top_k_frequency
+from facemotion.study.manifest import build_manifest
+from facemotion.study.provenance import Provenance, write_artifact, write_table
+from facemotion.study.sweeps import expand_grid, settled_after, top_k_frequency
 
 
 def test_expand_grid_is_the_cartesian_product_in_order():
@@ -81,8 +81,8 @@ def test_manifest_lists_the_current_jobs_and_detects_tampering(tmp_path, monkeyp
     assert m.set_index("path").loc[a, "schema_id"] == "facemotion/r_values"
     assert m.set_index("path").loc[a, "sidecar"] == "results/x/qr/r_values.meta.json"
     # the manifest job writes its TSV without pandas: the same bytes as pandas' table
-    from facemotion.manifest import manifest_rows, manifest_tsv
-    from facemotion.provenance import table_bytes
+    from facemotion.study.manifest import manifest_rows, manifest_tsv
+    from facemotion.study.provenance import table_bytes
 
     assert manifest_tsv(manifest_rows("results", targets=[b])) == table_bytes(m)
     with open(a, "a") as f:
@@ -99,7 +99,7 @@ def test_script_adapter_turns_errors_into_one_line(tmp_path):
     code = textwrap.dedent(f"""
         from types import SimpleNamespace
         from facemotion.errors import InputError
-        from facemotion.snakemake_adapter import run_step
+        from facemotion.study.adapter import run_step
         sm = SimpleNamespace(rule="demo", log=["{tmp_path}/demo.log"], input=[], params={{}},
                              wildcards={{}})
         def main(sm, log, prov):
@@ -117,7 +117,7 @@ def test_script_adapter_turns_errors_into_one_line(tmp_path):
 def test_sidecar_records_params_and_wildcards(tmp_path):
     from types import SimpleNamespace
 
-    from facemotion.snakemake_adapter import provenance_for
+    from facemotion.study.adapter import provenance_for
 
     f = tmp_path / "in.npz"
     f.write_bytes(np.zeros(3).tobytes())
@@ -131,7 +131,7 @@ def test_sidecar_records_params_and_wildcards(tmp_path):
 
 
 def _toy_displacements(n_sent=6, n=8, seed=0):
-    from facemotion.displacements import Displacements
+    from facemotion.ingest.displacements import Displacements
 
     rng = np.random.default_rng(seed)
     W = rng.standard_normal((3, n)) * 3
@@ -151,8 +151,8 @@ def _toy_displacements(n_sent=6, n=8, seed=0):
 
 
 def test_marker_subset_axis_selects_columns():
-    from facemotion.pivoted_qr import rank_markers
-    from facemotion.sweeps import evaluate_point
+    from facemotion.ranking.routes import rank_markers
+    from facemotion.study.sweeps import evaluate_point
 
     pts = expand_grid({"k": [2], "marker_subsets": {"lips": ["m1", "m3", "m5", "m7"],
                                                     "all_but_one": [f"m{j}" for j in range(7)]}})
@@ -176,7 +176,7 @@ def test_the_manifest_job_does_not_import_pandas():
     import subprocess
     import sys
 
-    code = ("import sys, facemotion.manifest, facemotion.snakemake_adapter; "
+    code = ("import sys, facemotion.study.manifest, facemotion.study.adapter; "
             "print('pandas' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout

@@ -1,11 +1,11 @@
-"""The virtual talker (facemotion.synth) against its planted ground truth, the paper's design
-and its calibration set.
+"""The virtual talker (facemotion.virtual.talker) against its planted ground truth, the paper's
+design and its calibration set.
 
 The references are independent of the package's analysis code: the head frame comes from the
 planted head motion (scipy's rotations here) or from a small Kabsch fit of the head band written
-here; marker 13 of S1 is filled here by copying 11 (not by facemotion.copy_fill); the ranking is
-scipy's pivoted QR and the fits numpy's least squares on a displacement matrix built here (rows
-frame-major: row 3f + c is axis c of frame f; one column per face marker '1'..'57').
+here; marker 13 of S1 is filled here by copying 11 (not by facemotion.ingest.copy_fill); the
+ranking is scipy's pivoted QR and the fits numpy's least squares on a displacement matrix built
+here (rows frame-major: row 3f + c is axis c of frame f; one column per face marker '1'..'57').
 """
 
 import numpy as np
@@ -14,8 +14,8 @@ import scipy.linalg
 from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
-from facemotion.recording import Recording
-from facemotion.synth import (
+from facemotion.io.recording import Recording
+from facemotion.virtual.talker import (
     CALIBRATION,
     HEAD_PIVOT,
     NOISE_PER_AXIS_MM,
@@ -328,9 +328,9 @@ def test_smoke_size_generic_design_and_recordings(tmp_path):
 
 
 def test_bad_settings_name_the_setting():
-    with pytest.raises(InputError, match="design 'S9' unknown"):
+    with pytest.raises(InputError, match="unknown design 'S9'"):
         simulate_subject("S9")
-    with pytest.raises(InputError, match="design 'S3' unknown"):
+    with pytest.raises(InputError, match="unknown design 'S3'"):
         marker_layout(design="S3")
     with pytest.raises(InputError, match="n_sentences"):
         simulate_subject("S")
@@ -348,7 +348,7 @@ def test_occlusions_are_missing_samples_that_survive_c3d(tmp_path):
     """Occluded samples are NaN exactly where the truth says, never in 11/13 or the first
     frames; written to C3D as invalid samples they read back as NaN; everything else is the
     same as without occlusions (a separate random stream)."""
-    from facemotion.readers import read_c3d, write_c3d
+    from facemotion.io.c3d import read_c3d, write_c3d
 
     subj = simulate_subject("S2a", seed=4, n_sentences=12)
     clean = simulate_subject("S2a", seed=4, n_sentences=12, occlusions=False)

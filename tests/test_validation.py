@@ -10,15 +10,17 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.readers import read_c3d, read_recording, write_c3d, write_csv
-from facemotion.recording import Recording
-from facemotion.validation import (
+from facemotion.ingest.validation import (
     Limits,
     check_face_spread,
     check_take,
     face_spread,
     find_outliers,
 )
+from facemotion.io.c3d import read_c3d, write_c3d
+from facemotion.io.recording import Recording
+from facemotion.io.registry import read_recording
+from facemotion.io.wide_csv import write_csv
 
 ROOT = Path(os.environ.get("FACEMOTION_SHARED_DATA",
                            Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -152,7 +154,7 @@ def test_bad_limits_name_the_setting():
 
 
 def test_nanmedian_over_markers_equals_numpys():
-    from facemotion.validation import _nanmedian_markers
+    from facemotion.ingest.validation import _nanmedian_markers
 
     rng = np.random.default_rng(0)
     for shape in ((50, 7, 3), (40, 8, 3), (30, 9), (20, 1, 3)):
@@ -168,7 +170,7 @@ def test_vectorised_outlier_screen_equals_the_per_marker_test():
     """find_outliers sends only markers with a gap, a far sample or a fast step to the
     piecewise test: the mask equals the piecewise test run on every marker (reference), and
     the centre distances equal numpy's nanmedian-based ones."""
-    from facemotion.validation import _reachable, centre_distances
+    from facemotion.ingest.validation import _reachable, centre_distances
 
     rng = np.random.default_rng(3)
     F, n = 700, 40
@@ -203,7 +205,7 @@ def test_vectorised_outlier_screen_equals_the_per_marker_test():
 def test_same_face_across_takes(jaw):
     """One-second windows of the jaw exercise (mouth held open in some) are the same face;
     a mirrored take and a take with its labels shuffled are not."""
-    from facemotion.validation import check_same_shape
+    from facemotion.ingest.validation import check_same_shape
 
     rec = read_c3d(ROOT / "animface" / "animface_jaw.c3d")
     windows = [Recording(rec.labels, rec.points[a:a + 60], rec.rate, source=f"w{a}")
@@ -230,7 +232,7 @@ def test_rate_outside_the_plausible_range(jaw):
 def test_frozen_take_and_still_markers(jaw):
     """A take in which nothing moves is an error; a marker that is perfectly still (a still
     head in synthetic data, a coarse export) is not an outlier."""
-    from facemotion.validation import check_moves
+    from facemotion.ingest.validation import check_moves
 
     frozen = Recording(jaw.labels, np.repeat(jaw.points[:1], 30, axis=0), jaw.rate,
                        source="frozen.c3d")

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
-from facemotion.input.openface import read_openface_csv
-from facemotion.input.optitrack import read_optitrack_csv
-from facemotion.input.qualisys import read_qualisys_tsv
-from facemotion.loading import load_dataset
-from facemotion.readers import read_recording, write_csv
+from facemotion.ingest.loading import load_dataset
+from facemotion.io.openface import read_openface_csv
+from facemotion.io.optitrack import read_optitrack_csv
+from facemotion.io.qualisys import read_qualisys_tsv
+from facemotion.io.registry import read_recording
+from facemotion.io.wide_csv import write_csv
 
 RATE = 100.0
 
@@ -305,7 +306,7 @@ def test_the_same_take_from_three_exports_gives_the_same_A(tmp_path):
     write_csv(tmp_path / "wide" / "block.csv", read_qualisys_tsv(tmp_path / "block.tsv"))
     (tmp_path / "iv.tsv").write_text("take\tstart_s\tend_s\tname\nblock\t0.05\t0.5\tone\n"
                                      "block\t0.55\t1.1\ttwo\n")
-    from facemotion.input.segments import segment_subject
+    from facemotion.ingest.segments import segment_subject
 
     results = []
     for fmt, path in (("qualisys_tsv", tmp_path / "block.tsv"),

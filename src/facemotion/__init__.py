@@ -33,28 +33,31 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+from facemotion import _deprecated
+from facemotion._version import __version__ as __version__
+
+_deprecated.install()  # the 0.1 module paths (facemotion.pivoted_qr, ...) for one release
 
 # public name -> (module, attribute); imported on first access (PEP 562)
 _LAZY = {
-    "read": ("facemotion.readers", "read_recording"),
-    "load": ("facemotion.loading", "load"),
-    "align_head": ("facemotion.head_motion", "align_head"),
-    "fill_gaps": ("facemotion.gaps", "fill_gaps"),
-    "gap_report": ("facemotion.gaps", "gap_report"),
-    "displacement_matrix": ("facemotion.displacements", "build_displacements"),
-    "rank_markers": ("facemotion.pivoted_qr", "rank_markers"),
-    "epsilon_rank": ("facemotion.pivoted_qr", "epsilon_rank"),
-    "fit_regions": ("facemotion.prediction", "fit_coefficients"),
-    "predict": ("facemotion.prediction", "predict"),
-    "error_curve": ("facemotion.prediction", "error_curve"),
-    "sentence_sweep": ("facemotion.sentence_sweep", "sentence_sweep"),
-    "MarkerSelector": ("facemotion.selector", "MarkerSelector"),
-    "selection_table": ("facemotion.selector", "selection_table"),
-    "Recording": ("facemotion.recording", "Recording"),
-    "Displacements": ("facemotion.displacements", "Displacements"),
-    "LoadedDataset": ("facemotion.loading", "LoadedDataset"),
-    "MarkerRanking": ("facemotion.pivoted_qr", "MarkerRanking"),
+    "read": ("facemotion.io.registry", "read_recording"),
+    "load": ("facemotion.ingest.loading", "load"),
+    "align_head": ("facemotion.ingest.head_motion", "align_head"),
+    "fill_gaps": ("facemotion.ingest.gaps", "fill_gaps"),
+    "gap_report": ("facemotion.ingest.gaps", "gap_report"),
+    "displacement_matrix": ("facemotion.ingest.displacements", "build_displacements"),
+    "rank_markers": ("facemotion.ranking.routes", "rank_markers"),
+    "epsilon_rank": ("facemotion.ranking.epsilon_rank", "epsilon_rank"),
+    "fit_regions": ("facemotion.regions.prediction", "fit_coefficients"),
+    "predict": ("facemotion.regions.prediction", "predict"),
+    "error_curve": ("facemotion.regions.prediction", "error_curve"),
+    "sentence_sweep": ("facemotion.ranking.stability", "sentence_sweep"),
+    "MarkerSelector": ("facemotion.regions.selector", "MarkerSelector"),
+    "selection_table": ("facemotion.regions.selector", "selection_table"),
+    "Recording": ("facemotion.io.recording", "Recording"),
+    "Displacements": ("facemotion.ingest.displacements", "Displacements"),
+    "LoadedDataset": ("facemotion.ingest.loading", "LoadedDataset"),
+    "MarkerRanking": ("facemotion.ranking.result", "MarkerRanking"),
     "InputError": ("facemotion.errors", "InputError"),
 }
 _SUBMODULES = ("lips",)
@@ -68,33 +71,33 @@ __all__ = [  # the same names as _LAZY and _SUBMODULES (a literal list, for lint
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
     from facemotion import lips
-    from facemotion.displacements import Displacements
-    from facemotion.displacements import build_displacements as displacement_matrix
     from facemotion.errors import InputError
-    from facemotion.gaps import fill_gaps, gap_report
-    from facemotion.head_motion import align_head
-    from facemotion.loading import LoadedDataset, load
-    from facemotion.pivoted_qr import MarkerRanking, epsilon_rank, rank_markers
-    from facemotion.prediction import error_curve, predict
-    from facemotion.prediction import fit_coefficients as fit_regions
-    from facemotion.readers import read_recording as read
-    from facemotion.recording import Recording
-    from facemotion.selector import MarkerSelector, selection_table
-    from facemotion.sentence_sweep import sentence_sweep
+    from facemotion.ingest.displacements import Displacements
+    from facemotion.ingest.displacements import build_displacements as displacement_matrix
+    from facemotion.ingest.gaps import fill_gaps, gap_report
+    from facemotion.ingest.head_motion import align_head
+    from facemotion.ingest.loading import LoadedDataset, load
+    from facemotion.io.recording import Recording
+    from facemotion.io.registry import read_recording as read
+    from facemotion.ranking.epsilon_rank import epsilon_rank
+    from facemotion.ranking.result import MarkerRanking
+    from facemotion.ranking.routes import rank_markers
+    from facemotion.ranking.stability import sentence_sweep
+    from facemotion.regions.prediction import error_curve, predict
+    from facemotion.regions.prediction import fit_coefficients as fit_regions
+    from facemotion.regions.selector import MarkerSelector, selection_table
 
 
 class _Package(types.ModuleType):
-    """The package module, keeping API functions that share their name with a submodule.
+    """The package module, whose API names a module never replaces.
 
-    Importing a submodule sets the package's attribute of that name to it (the import system's
-    ``setattr(package, "sentence_sweep", module)``), which would replace the function
-    ``facemotion.sentence_sweep``.  ``from facemotion.sentence_sweep import ...`` still works.
+    Importing a submodule sets the package's attribute of that name to it; a deprecated 0.1
+    path such as ``facemotion.sentence_sweep`` would otherwise replace the function of that
+    name.
     """
 
-    _shadowed = frozenset({"sentence_sweep"})
-
     def __setattr__(self, name: str, value: Any) -> None:
-        if name in self._shadowed and isinstance(value, types.ModuleType):
+        if name in _LAZY and isinstance(value, types.ModuleType):
             return
         super().__setattr__(name, value)
 

@@ -19,9 +19,11 @@ from pathlib import Path
 
 import click
 
-from facemotion import __version__
+from facemotion._version import __version__
 from facemotion.errors import InputError
-from facemotion.pivoted_qr import DEFAULT_R_NORMALISATION, R_NORMALISATIONS
+from facemotion.io.base import UNITS as UNIT_NAMES
+from facemotion.io.registry import FORMAT_NAMES, SUFFIX_FORMATS
+from facemotion.ranking.result import DEFAULT_R_NORMALISATION, R_NORMALISATIONS
 
 #: Tolerances (mm) of the epsilon-rank when none are given: the study's default (qr.tolerances_mm).
 DEFAULT_TOLERANCES_MM = (0.25, 0.5, 1.0)
@@ -47,12 +49,14 @@ def _numbers(ctx, param, value) -> list[float]:
 
 
 FORMAT = click.option(
-    "--format", "fmt", type=click.Choice(["c3d", "trc", "csv"], case_sensitive=False),
-    default=None, help="File format. Default: from the file suffix (.c3d, .trc, .csv).")
+    "--format", "fmt", type=click.Choice(FORMAT_NAMES, case_sensitive=False),
+    default=None, help=f"File format. Default: from the file suffix "
+                       f"({', '.join(SUFFIX_FORMATS)}).")
 UNITS = click.option(
     "--units", default=None, metavar="UNIT",
-    help="Units (mm, cm, m, in) of a file that does not state its own (a CSV file, or a C3D/TRC "
-         "file without POINT:UNITS/Units); a file's own units always apply. Default: such a "
+    help=f"Units ({', '.join(UNIT_NAMES)}) of a file that does not state its own (a CSV file, "
+         "or a C3D/TRC file without POINT:UNITS/Units); a file's own units always apply. "
+         "Default: such a "
          "CSV file is read as mm. Everything is reported in mm.")
 
 
@@ -78,8 +82,8 @@ def info(file: str, fmt: str | None, units: str | None, markers: bool) -> None:
     FILE is one take (C3D, TRC or CSV). Coordinates are converted to mm on reading; the units
     line says what the file declared.
     """
-    from facemotion.gaps import gap_report
-    from facemotion.readers import read_recording
+    from facemotion.ingest.gaps import gap_report
+    from facemotion.io.registry import read_recording
 
     rec = read_recording(file, fmt, units=units)
     report = gap_report(rec)
@@ -129,7 +133,7 @@ def info(file: str, fmt: str | None, units: str | None, markers: bool) -> None:
 @click.option("--method", type=click.Choice(["auto", "gram", "tsqr", "scipy"]),
               default="auto", show_default=True,
               help="Route of the QR with column pivoting (all give the same pivots; see "
-                   "facemotion.pivoted_qr).")
+                   "facemotion.ranking.routes).")
 @click.option("--max-interp-s", type=click.FloatRange(min=0), default=None, metavar="S",
               help="Longest gap (s) filled by cubic interpolation; longer gaps by PCA. "
                    "Default: the study's (0.1 s).")

@@ -8,7 +8,7 @@ import yaml
 from snakemake.utils import min_version
 
 from facemotion.errors import InputError
-from facemotion.invocation import (
+from facemotion.study.invocation import (
     ParseGuard,
     invocation_dir,
     remember_invocation,
@@ -16,8 +16,8 @@ from facemotion.invocation import (
     same_study_command,
     sample_benchmarks_every,
 )
-from facemotion.study import closing_message, study_name
-from facemotion.settings import (
+from facemotion.study.summary import closing_message, study_name
+from facemotion.study.settings import (
     DataCounts,
     check_lip_frames,
     check_settings,
@@ -27,7 +27,7 @@ from facemotion.settings import (
     validate_config,
     validate_sheet,
 )
-from facemotion.subjects import read_subject_sheet, resolve_datasets
+from facemotion.study.sheet import read_subject_sheet, resolve_datasets
 
 min_version("9.13")  # pathvars (<results>)
 
@@ -199,7 +199,7 @@ def dataset_params(dataset):
     }
 
 
-from facemotion.provenance import figure_paths
+from facemotion.plots.save import figure_paths
 
 FIGURE_FORMATS = config["figures"]["formats"]
 
@@ -348,7 +348,7 @@ def lip_inputs(wildcards):
 
 
 # ---- virtual talkers (sweep over the generator's talker seed) ----
-from facemotion.subjects import Dataset, Subject, n_heldout
+from facemotion.study.sheet import Dataset, Subject, n_heldout
 
 TALKERS = []
 with exit_on_error():
@@ -401,10 +401,10 @@ VIRTUAL = [
 
 
 # ---- every setting against the data's marker and sentence counts (parse time) ----
-from facemotion.readers import read_labels
-from facemotion.sweeps import expand_grid
-from facemotion.dense_talker import DENSE_DESIGNS, dense_layout
-from facemotion.synth import marker_layout
+from facemotion.io.registry import read_labels
+from facemotion.study.sweeps import expand_grid
+from facemotion.virtual.dense import DENSE_DESIGNS, dense_layout
+from facemotion.virtual.talker import marker_layout
 
 
 def _file_labels(subj):
@@ -421,7 +421,7 @@ def _file_labels(subj):
 def _lip_frames(ls, spec):
     if spec["source"] == "grid":
         # the header's count (the job reads every frame)
-        from facemotion.readers import trc_frame_count
+        from facemotion.io.trc import trc_frame_count
 
         tracks = lip_inputs(SimpleNamespace(lip_subject=ls))["tracks"]
         return sum(trc_frame_count(t) for t in tracks)

@@ -26,15 +26,15 @@ if TYPE_CHECKING:
     import numpy as np
 
     from facemotion.lips.mesh import LipMesh
-    from facemotion.lips.modes import Modes
+    from facemotion.lips.pca import Modes
 
 _LAZY = {
     "parametric_lip_mesh": ("facemotion.lips.mesh", "parametric_lip_mesh"),
     "canonical_lip_mesh": ("facemotion.lips.mesh", "canonical_lip_mesh"),
     "LipMesh": ("facemotion.lips.mesh", "LipMesh"),
-    "Modes": ("facemotion.lips.modes", "Modes"),
+    "Modes": ("facemotion.lips.pca", "Modes"),
     "make_virtual_talker": ("facemotion.lips.virtual", "make_virtual_talker"),
-    "run_lip_model": ("facemotion.lips.study", "run_lip_model"),
+    "run_lip_model": ("facemotion.lips.pipeline", "run_lip_model"),
 }
 
 __all__ = ["fit", "modes", "reconstruct", *_LAZY]
@@ -59,12 +59,12 @@ def modes(displacements, n_modes: int | None = None) -> Modes:
     """Learned deformation modes: PCA of fitted displacements (eqs. 11-13).
 
     displacements: (frames, N, 3) from :func:`fit`, or (frames, D).  Returns a
-    :class:`~facemotion.lips.modes.Modes` over the D = 3N flattened DOF (node-major: x, y, z
+    :class:`~facemotion.lips.pca.Modes` over the D = 3N flattened DOF (node-major: x, y, z
     of node 0, then node 1, ...); ``.table()`` gives the variance of each mode as pandas.
     """
     import numpy as np
 
-    from facemotion.lips.modes import pca_svd
+    from facemotion.lips.pca import pca_svd
 
     data = np.asarray(displacements, dtype=float)
     return pca_svd(data.reshape(len(data), -1), n_modes)
@@ -85,11 +85,11 @@ def reconstruct(model: Modes, y, observed, noise_var: float = 0.0,
 
 
 class _Package(types.ModuleType):
-    """Keeps the function `modes` when the submodule facemotion.lips.modes is imported (the
-    import system sets the package attribute of a submodule's name to the submodule)."""
+    """Keeps the function `modes` when the deprecated 0.1 path facemotion.lips.modes is
+    imported (the import system sets the package attribute of a submodule's name to it)."""
 
     def __setattr__(self, name: str, value: Any) -> None:
-        if name == "modes" and isinstance(value, types.ModuleType):
+        if name in __all__ and isinstance(value, types.ModuleType):
             return
         super().__setattr__(name, value)
 

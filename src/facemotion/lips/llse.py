@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from facemotion.errors import InputError
-from facemotion.lips.modes import Modes
+from facemotion.lips.pca import Modes
 
 
 @dataclass

@@ -25,15 +25,27 @@ from pathlib import Path
 import numpy as np
 
 from facemotion.errors import InputError
+from facemotion.io.obj import read_obj
 
 ROLES = ("outer", "lip", "inner", "strip", "fixed")
+
+
 KINDS = ("lip", "ridge", "strip")
+
+
 BAND_ROLES = ("outer", "lip", "inner")
+
 
 # MediaPipe lip contours (data README), each from one mouth corner round to the other.
 OUTER_LOWER = [61, 146, 91, 181, 84, 17, 314, 405, 321, 375, 291]
+
+
 OUTER_UPPER = [61, 185, 40, 39, 37, 0, 267, 269, 270, 409, 291]
+
+
 INNER_LOWER = [78, 95, 88, 178, 87, 14, 317, 402, 318, 324, 308]
+
+
 INNER_UPPER = [78, 191, 80, 81, 82, 13, 312, 311, 310, 415, 308]
 
 
@@ -43,6 +55,8 @@ def _ring(lower: list[int], upper: list[int]) -> list[int]:
 
 
 OUTER_RING = _ring(OUTER_LOWER, OUTER_UPPER)
+
+
 INNER_RING = _ring(INNER_LOWER, INNER_UPPER)
 
 
@@ -311,46 +325,6 @@ def unit_scale(mesh: LipMesh, extent: tuple[float, float, float] | None) -> np.n
     return extent / extents(mesh.nodes)
 
 
-# -- canonical (MediaPipe) mesh -------------------------------------------------------------
-def read_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (V, 3) and triangles (T, 3, 0-based) of a Wavefront OBJ file.
-
-    Reads 'v' and 'f' lines; face entries may be 'a', 'a/b', 'a//c' or 'a/b/c'; negative
-    indices count from the end; polygons are fan-triangulated. Other lines are ignored.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read OBJ file ({exc.strerror})") from None
-    verts, faces = [], []
-    for lineno, line in enumerate(text.splitlines(), 1):
-        tok = line.split()
-        if not tok:
-            continue
-        try:
-            if tok[0] == "v":
-                verts.append([float(t) for t in tok[1:4]])
-                if len(verts[-1]) != 3:
-                    raise ValueError("a vertex needs 3 coordinates")
-            elif tok[0] == "f":
-                idx = []
-                for t in tok[1:]:
-                    i = int(t.split("/")[0])
-                    idx.append(i - 1 if i > 0 else len(verts) + i)
-                if len(idx) < 3:
-                    raise ValueError("a face needs at least 3 vertices")
-                faces += [[idx[0], idx[j], idx[j + 1]] for j in range(1, len(idx) - 1)]
-        except ValueError as exc:
-            raise InputError(f"{path}: line {lineno}: bad OBJ record {line.strip()!r} "
-                             f"({exc})") from None
-    v = np.array(verts, dtype=float).reshape(-1, 3)
-    f = np.array(faces, dtype=np.int64).reshape(-1, 3)
-    if len(f) and (f.min() < 0 or f.max() >= len(v)):
-        raise InputError(f"{path}: a face refers to a vertex outside 1..{len(v)}")
-    return v, f
-
-
 def lip_band(triangles: np.ndarray, outer_ring: list[int] = OUTER_RING,
              inner_ring: list[int] = INNER_RING, source: str = "mesh") -> np.ndarray:
     """Indices of the triangles between the outer and inner lip contours.
@@ -470,3 +444,4 @@ def canonical_lip_mesh(obj_path: str | Path, strip_rings: int = 2, strip_depth: 
     return LipMesh(np.vstack(nodes), np.vstack(tris_all), np.where(role_all == "fixed")[0],
                    role_all, np.concatenate(parts), np.concatenate(kinds_all), labs,
                    name=f"canonical lip mesh ({Path(obj_path).name})")
+

@@ -17,7 +17,7 @@ that transform brings every frame into the model's coordinates (`to_model`).
 
 `align_rigid` is an alternative for data with rigid head landmarks (a rigid, Kabsch fit of
 reference landmarks to a target frame); it is a small private version of the project's head
-alignment (`facemotion.head_motion`), kept here so the lip model does not depend on its API.
+alignment (`facemotion.ingest.head_motion`), kept here so the lip model does not depend on its API.
 """
 
 from __future__ import annotations

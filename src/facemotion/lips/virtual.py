@@ -18,8 +18,8 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
+from facemotion.io.recording import Recording
 from facemotion.lips.mesh import LipMesh, parametric_lip_mesh
-from facemotion.recording import Recording
 
 GESTURES = ("open", "protrude", "spread", "corner_pull_left", "lower_lip_tuck", "upper_raise")
 NOSE_OFFSET_MM = np.array([0.0, 28.0, 18.0])   # nose tip relative to the mouth centre

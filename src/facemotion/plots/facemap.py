@@ -181,7 +181,7 @@ def mesh_values(placed, xy: np.ndarray, values: np.ndarray) -> np.ndarray:
 def visible_triangles(placed, vertex_values: np.ndarray | None = None) -> np.ndarray:
     """The placed mesh's front-facing triangles with a value at all three vertices, back to
     front (painter's order by mean depth z)."""
-    from facemotion.face_mesh import front_facing
+    from facemotion.plots.face_mesh import front_facing
 
     tris = front_facing(placed.positions[:, :2], placed.triangles)
     if vertex_values is not None:

@@ -20,7 +20,7 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import FixedLocator, NullFormatter
 
 from facemotion.errors import InputError
-from facemotion.face_mesh import FaceMesh, place_mesh
+from facemotion.plots.face_mesh import FaceMesh, place_mesh
 from facemotion.plots.facemap import (
     NEGATIVE_COLOUR,
     as_neutral,

@@ -87,7 +87,7 @@ def save_renderer(fig):
     extents measured here (on another renderer every text is laid out again at the draw)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from facemotion.provenance import FIGURE_DPI
+    from facemotion.plots.save import FIGURE_DPI
 
     if not isinstance(fig.canvas, FigureCanvasAgg):
         FigureCanvasAgg(fig)

@@ -1,0 +1,303 @@
+"""One path by which every recording (virtual or real) enters the analysis.
+
+read -> check labels -> validate (units, length, outliers: :mod:`facemotion.ingest.validation`) ->
+remove head motion -> select markers -> fill gaps -> displacements.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from facemotion.errors import InputError
+from facemotion.ingest.copy_fill import copy_fill
+from facemotion.ingest.displacements import (
+    Displacements,
+    build_displacements,
+    check_same_take_layout,
+    split_roles,
+)
+from facemotion.ingest.segments import Segment, cut
+from facemotion.io.recording import finite_samples
+
+if TYPE_CHECKING:
+    from facemotion.ingest.validation import Limits
+
+# read_recording, align_head, fill_gaps and the validation are imported in load_dataset: a job
+# that only splits a dataset's rows (split_roles) does not load the readers or scipy.
+
+log = logging.getLogger("facemotion")
+
+
+@dataclass
+class LoadedDataset:
+    """A dataset loaded by :func:`load_dataset`: A for all sentences (training first), the gap
+    report (one row per marker), the sentences table (file, role, frames, head-fit residual),
+    and the masks behind the gap figure."""
+
+    displacements: Displacements
+    gap_report: pd.DataFrame
+    sentences: pd.DataFrame
+    time_s: np.ndarray        # (F,) time of each frame in the concatenated recording
+    missing: np.ndarray       # (F, n) bool, missing before filling
+    filled: np.ndarray        # (F, n) bool, filled (by us or the producer)
+    sentence_starts_s: list[float]
+
+    @property
+    def train(self) -> Displacements:
+        """The training sentences' displacements (the rows of A the ranking is made from)."""
+        return split_roles(self.displacements, self.sentences)[0]
+
+    @property
+    def heldout(self) -> Displacements | None:
+        """The held-out sentences' displacements, or None without held-out sentences."""
+        return split_roles(self.displacements, self.sentences)[1]
+
+
+def _aggregate_gap_reports(reports: list[pd.DataFrame]) -> pd.DataFrame:
+    cat = pd.concat(reports, ignore_index=True)
+    g = cat.groupby("marker", sort=False)
+    out = pd.DataFrame({
+        "marker": list(g.groups),
+        "frames": g["frames"].sum().to_numpy(),
+        "missing_frames": g["missing_frames"].sum().to_numpy(),
+        "longest_gap_frames": g["longest_gap_frames"].max().to_numpy(),
+        "n_gaps": g["n_gaps"].sum().to_numpy(),
+        "filled_frames": g["filled_frames"].sum().to_numpy(),
+    })
+    out.insert(3, "missing_fraction", out["missing_frames"] / out["frames"])
+    methods = g["fill_method"].agg(
+        lambda s: "+".join(sorted({m for v in s for m in str(v).split("+") if m != "none"}))
+        or "none")
+    out["fill_method"] = methods.to_numpy()
+    return out
+
+
+def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
+                 head_markers: list[str] = (), exclude_markers: list[str] = (),
+                 include_markers: list[str] = (), train: list[int], heldout: list[int],
+                 max_interp_s: float = 0.1, long_gaps: str = "pca",
+                 neutral: str = "first_frame", limits: Limits | None = None,
+                 sentences: list | None = None,
+                 subject_prefix: str | None = None,
+                 copy_markers: list[tuple[str, str]] = (),
+                 markers_named_in: str = "the subject sheet",
+                 takes: dict | None = None) -> LoadedDataset:
+    """Load the sentences ``train + heldout`` (0-based indices into the sentences).
+
+    The sentences are ``recordings`` (one file each) or, when given, ``sentences``: intervals
+    of the takes (:class:`~facemotion.ingest.segments.Segment` or its ``to_param`` dict), each
+    take read once and cut. The dataset's sentences are ordered training sentences first,
+    then held-out ones. Every sentence is checked (:func:`facemotion.ingest.validation.check_take`,
+    with ``limits``) on the markers the analysis uses (the analysed and the head markers)
+    before head motion is removed.
+    ``copy_markers``: (target, source) pairs; the target's missing samples are filled by
+    copying the source's displacement in head coordinates (``facemotion.ingest.copy_fill``) before
+    the other gaps are filled.
+    ``markers_named_in`` says in errors where the marker lists came from (the subject sheet, or
+    the arguments of :func:`load`).
+    ``takes``: a dict shared by the calls that load several datasets of one subject (the same
+    files in another order, e.g. S2a and S2a*): each take is read once and kept there (the
+    recordings read are never modified), with the results of the sentences' checks that
+    found nothing to warn about. Without it, a take is dropped once cut.
+    """
+    from facemotion.ingest.gaps import fill_gaps
+    from facemotion.ingest.head_motion import align_head
+    from facemotion.ingest.validation import Limits, check_same_shape, check_take
+    from facemotion.io.registry import read_recording
+
+    limits = limits or Limits()
+    items = [Segment.from_param(s) for s in (sentences if sentences is not None
+                                              else recordings)]
+    order = list(train) + list(heldout)
+    chosen = [items[i] for i in order]
+    paths = [s.take for s in chosen]
+    roles = ["train"] * len(train) + ["heldout"] * len(heldout)
+    shared = takes is not None
+    takes = {} if takes is None else takes
+    recs = []
+    n_takes, n_read = len(dict.fromkeys(paths)), 0
+    for i, seg in enumerate(chosen):
+        key = (seg.take, fmt, units, subject_prefix)
+        if key not in takes:
+            n_read += 1
+            log.info("reading %s (%d/%d)", seg.take, n_read, n_takes)
+            takes[key] = read_recording(seg.take, fmt, units=units,
+                                        subject_prefix=subject_prefix)
+        recs.append(cut(takes[key], seg))
+        if not seg.whole:
+            log.info("sentence %d/%d %r: %s, %.4f-%.4f s, %d frames", i + 1, len(chosen),
+                     seg.name, seg.take, seg.start_s, seg.end_s, recs[-1].n_frames)
+    if not shared:
+        takes.clear()
+    for rec in recs[1:]:
+        check_same_take_layout(rec, recs[0])
+    labels = recs[0].labels
+    for setting, names in (("head_markers", head_markers), ("exclude_markers", exclude_markers),
+                           ("include_markers", include_markers)):
+        twice = sorted({m for m in names if list(names).count(m) > 1})
+        if twice:
+            raise InputError(f"{setting} ({markers_named_in}): marker(s) {', '.join(twice)} "
+                             "listed twice")
+        for m in names:
+            if m not in labels:
+                raise InputError(f"{paths[0]}: marker {m!r} (named in {setting} of "
+                                 f"{markers_named_in}) is not in the data")
+    keep = [m for m in (include_markers or labels) if m not in set(exclude_markers)]
+    if len(keep) < 2:
+        raise InputError(f"{paths[0]}: fewer than 2 markers left after include/exclude")
+    used = keep + [m for m in head_markers if m not in set(keep)]
+    checks = []
+    for i, (rec, role) in enumerate(zip(recs, roles, strict=True)):
+        # a sentence checked clean for another dataset of the subject (same interval, markers
+        # and limits; nothing to warn about) is not checked again
+        checked = ("checked", chosen[i], fmt, units, subject_prefix, tuple(used), limits)
+        if checked in takes:
+            recs[i], found = rec.select(used), takes[checked]
+        else:
+            recs[i], found = check_take(rec.select(used), limits, sheet_units=units, role=role)
+            if shared and not found.units_conflict and not found.outliers.any():
+                takes[checked] = found
+        checks.append(found)
+    shape_rms = check_same_shape(recs, limits)
+    # Head motion: one neutral head configuration (the first take's) for all takes.
+    residuals = []
+    if head_markers:
+        if len(head_markers) < 3:
+            raise InputError(f"{paths[0]}: {len(head_markers)} head marker(s) given "
+                             f"({', '.join(head_markers)}); at least 3 are needed")
+        ref_rec = recs[0].select(list(head_markers))
+        complete = np.flatnonzero(finite_samples(ref_rec.points).all(axis=1))
+        if complete.size == 0:
+            raise InputError(f"{paths[0]}: no frame has all head markers "
+                             f"{', '.join(head_markers)}")
+        # Reference: the median head configuration over all takes (one Procrustes step:
+        # align every frame to the first take's first complete frame, then take the median),
+        # so that one odd first frame (as in tracker output) or a brow raise that moves a
+        # forehead marker does not bias every other frame.
+        first = ref_rec.points[complete[0]]
+        stacked = np.concatenate([  # only the head markers need moving for this
+            align_head(rec.select(list(head_markers)), list(head_markers),
+                       reference=first)[0].points for rec in recs])
+        reference = np.nanmedian(stacked, axis=0)
+        aligned = []
+        for rec in recs:
+            a, res = align_head(rec, list(head_markers), reference=reference)
+            aligned.append(a)
+            residuals.append(res)
+            log.info("%s: head fit RMS residual mean %.3f mm, max %.3f mm", rec.source,
+                     float(np.mean(res)), float(np.max(res)))
+        recs = aligned
+    else:
+        residuals = [np.zeros(r.n_frames) for r in recs]
+    recs = [r.select(keep) for r in recs]
+    dropped = [m for m in labels if m not in set(keep)]
+    log.info("analysing %d of %d markers: %s", len(keep), len(labels), ", ".join(keep))
+    if dropped:
+        log.info("left out (sheet's include/exclude_markers): %s", ", ".join(dropped))
+    missing = [~finite_samples(r.points) for r in recs]
+    recs, copied = copy_fill(recs, list(copy_markers),
+                             where=f"{paths[0]}: subject sheet's copy_markers")
+    for t, s in copy_markers:
+        log.info("marker %s: %d missing samples filled by copying %s's displacement (head "
+                 "coordinates)", t, copied[t], s)
+    filled_recs, reports = [], []
+    for r, miss in zip(recs, missing, strict=True):
+        f, rep = fill_gaps(r, max_interp_s=max_interp_s, long_gaps=long_gaps)
+        filled_recs.append(f)
+        reports.append(_report_copies(rep, miss, r, list(copy_markers)))
+    names = [s.name for s in chosen]
+    disp = build_displacements(filled_recs, names, neutral=neutral, head_residuals=residuals)
+    cols = [used.index(m) for m in keep]
+    gap_report = _aggregate_gap_reports(reports)
+    gap_report.insert(len(gap_report.columns) - 2, "outlier_frames",
+                      sum(c.outliers[:, cols].sum(axis=0) for c in checks).astype(int))
+    sentences = pd.DataFrame({
+        "sentence": names,
+        "file": [str(p) for p in paths],
+        "start_s": [0.0 if s.whole else float(s.start_s) for s in chosen],
+        "end_s": [r.n_frames / r.rate if s.whole else float(s.end_s)
+                  for s, r in zip(chosen, recs, strict=True)],
+        "role": roles,
+        "frames": [r.n_frames for r in recs],
+        "duration_s": [r.n_frames / r.rate for r in recs],
+        "head_fit_rms_mm": [float(np.sqrt(np.mean(np.square(x)))) for x in residuals],
+        "head_fit_max_mm": [float(np.max(x)) if len(x) else 0.0 for x in residuals],
+        "units": [c.units for c in checks],
+        "units_from": [c.units_source for c in checks],
+        "units_conflict": [c.units_conflict for c in checks],
+        "face_spread_mm": [c.spread_mm for c in checks],
+        "shape_rms_mm": shape_rms,
+        "outlier_samples": [int(c.outliers.sum()) for c in checks],
+    })
+    rate = recs[0].rate
+    starts = np.cumsum([0] + [r.n_frames for r in recs])[:-1] / rate
+    return LoadedDataset(
+        displacements=disp,
+        gap_report=gap_report,
+        sentences=sentences,
+        time_s=np.arange(sum(r.n_frames for r in recs)) / rate,
+        missing=np.concatenate(missing),
+        filled=np.concatenate([f.filled for f in filled_recs]),
+        sentence_starts_s=[float(s) for s in starts],
+    )
+
+
+def _report_copies(rep: pd.DataFrame, miss: np.ndarray, rec, pairs: list[tuple[str, str]]
+                   ) -> pd.DataFrame:
+    """The gap report of a take, with the copy-filled targets described as they were before
+    the copy (``miss``: missing samples, gaps) and 'copy:SOURCE' among their fill methods."""
+    from facemotion.ingest.gaps import runs
+
+    if not pairs:
+        return rep
+    rep = rep.copy()
+    copied = miss & finite_samples(rec.points)
+    for t, s in pairs:
+        j = rec.labels.index(t)
+        i = int(np.flatnonzero(rep["marker"].to_numpy() == t)[0])
+        r = runs(miss[:, j])
+        rep.loc[i, "missing_frames"] = int(miss[:, j].sum())
+        rep.loc[i, "missing_fraction"] = float(miss[:, j].mean()) if len(miss) else 0.0
+        rep.loc[i, "longest_gap_frames"] = max((b - a for a, b in r), default=0)
+        rep.loc[i, "n_gaps"] = len(r)
+        if copied[:, j].any():
+            rest = [m for m in str(rep.loc[i, "fill_method"]).split("+") if m != "none"]
+            rep.loc[i, "fill_method"] = "+".join([f"copy:{s}"] + rest)
+    return rep
+
+
+def load(paths, *, heldout=(), fmt: str | None = None, head_markers=(), exclude_markers=(),
+         include_markers=(), **options) -> LoadedDataset:
+    """Load takes into one dataset (``facemotion.load``), by the path the workflow uses.
+
+    paths: one file or a list of files (the sentences, in this order).
+    heldout: 0-based indices into ``paths`` of the held-out sentences; the others train.
+    fmt: "c3d", "trc" or "csv"; default: from the first file's suffix.
+    head_markers: >= 3 markers that move with the head only (removed as rigid motion).
+    exclude_markers / include_markers: markers left out of / kept in the analysis.
+    options: the other settings of :func:`load_dataset` (``units``, ``max_interp_s``,
+        ``long_gaps``, ``neutral``), with its defaults (those of the workflow's config).
+    """
+    from facemotion.io.registry import infer_format
+
+    paths = [str(paths)] if isinstance(paths, str | Path) else [str(p) for p in paths]
+    if not paths:
+        raise InputError("paths: no recordings given")
+    held = sorted({int(i) for i in heldout})
+    bad = [i for i in held if not 0 <= i < len(paths)]
+    if bad:
+        raise InputError(f"heldout: sentence index(es) {bad} out of range for "
+                         f"{len(paths)} recording(s)")
+    train = [i for i in range(len(paths)) if i not in set(held)]
+    if not train:
+        raise InputError("heldout: every recording is held out; at least one must train")
+    return load_dataset(paths, fmt or infer_format(paths[0]), head_markers=list(head_markers),
+                        exclude_markers=list(exclude_markers),
+                        include_markers=list(include_markers), train=train, heldout=held,
+                        markers_named_in="the arguments", **options)

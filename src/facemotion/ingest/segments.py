@@ -1,0 +1,433 @@
+"""Cutting long takes into sentences: the subject sheet's ``segments`` column.
+
+A lab records one long take per block and marks the sentences in it. The ``segments`` cell of a
+subject says where the marks are, as one of
+
+- ``textgrid:<path>#<tier>``: a Praat TextGrid; every non-empty interval of the interval tier
+  ``<tier>`` is a sentence, named by its text;
+- ``events:<start label>,<end label>``: pairs of C3D events (EVENT:LABELS / EVENT:TIMES) in each
+  take, a sentence from each start event to the next end event, named ``<stem>_01``, ...;
+- ``tsv:<path>``: a tab-separated table with columns ``take`` (the take's file stem or name),
+  ``start_s``, ``end_s`` and ``name``.
+
+A path may hold ``{stem}`` (the take's file stem) and ``{shared_data}``, and is relative to the
+sheet. Time 0 is a take's first sample: sample ``i`` is at ``t = i / rate`` and belongs to the
+sentence whose interval ``[start, end)`` holds ``t``; samples outside every interval are not
+analysed. A subject's sentences are its takes in the sheet's order, and within a take the
+intervals in time order; the count is known when the sheet is read, so datasets can select
+training and held-out sentences by number.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from facemotion.errors import InputError, token
+from facemotion.io.recording import Recording
+
+KINDS = ("textgrid", "events", "tsv")
+TSV_COLUMNS = ("take", "start_s", "end_s", "name")
+# C3D stores event times as 32-bit floats (EVENT:TIMES): a time within this fraction of a frame
+# of a sample's time is that sample's time, so that an event placed on frame k starts at k.
+EVENT_SNAP_FRAMES = 0.01
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One sentence: an interval ``[start_s, end_s)`` of a take (None, None = the whole take)."""
+
+    name: str
+    take: str
+    start_s: float | None = None
+    end_s: float | None = None
+
+    @property
+    def whole(self) -> bool:
+        return self.start_s is None
+
+    def to_param(self) -> dict:
+        """A plain dict (for rule params and provenance)."""
+        return {"name": self.name, "take": self.take, "start_s": self.start_s,
+                "end_s": self.end_s}
+
+    @classmethod
+    def from_param(cls, value) -> Segment:
+        if isinstance(value, Segment):
+            return value
+        if isinstance(value, (str, Path)):
+            return cls(Path(value).stem, str(value))
+        return cls(str(value["name"]), str(value["take"]), value.get("start_s"),
+                   value.get("end_s"))
+
+
+@dataclass(frozen=True)
+class SegmentSpec:
+    kind: str
+    path: str | None = None
+    tier: str | None = None
+    start_label: str | None = None
+    end_label: str | None = None
+
+
+def parse_spec(cell: str, where: str) -> SegmentSpec:
+    """The ``segments`` cell -> what to read (no file is opened here)."""
+    kind, sep, rest = str(cell).strip().partition(":")
+    kind = kind.strip().lower()
+    if not sep or kind not in KINDS:
+        raise InputError(f"{where}: segments {cell!r} must start with textgrid:, events: or tsv:")
+    rest = rest.strip()
+    if kind == "textgrid":
+        path, sep, tier = rest.rpartition("#")
+        if not sep or not path.strip() or not tier.strip():
+            raise InputError(f"{where}: segments {cell!r} must look like "
+                             "'textgrid:<path>#<tier name>'")
+        return SegmentSpec("textgrid", path=path.strip(), tier=tier.strip())
+    if kind == "events":
+        labels = [x.strip() for x in rest.split(",")]
+        if len(labels) != 2 or not all(labels):
+            raise InputError(f"{where}: segments {cell!r} must look like "
+                             "'events:<start label>,<end label>'")
+        return SegmentSpec("events", start_label=labels[0], end_label=labels[1])
+    if not rest:
+        raise InputError(f"{where}: segments {cell!r} must look like 'tsv:<path>'")
+    return SegmentSpec("tsv", path=rest)
+
+
+def _resolve(template: str, take: str, sheet_dir: Path, shared_data) -> Path:
+    text = template.replace("{stem}", Path(take).stem)
+    if "{shared_data}" in text:
+        if shared_data is None:
+            raise InputError(f"segments path {template!r} uses {{shared_data}} but the setting "
+                             "'shared_data' is not set")
+        text = text.replace("{shared_data}", str(shared_data))
+    p = Path(text)
+    return p if p.is_absolute() else sheet_dir / p
+
+
+def _clean_name(text) -> str:
+    return " ".join(str(text).split())
+
+
+def check_intervals(intervals: list[tuple[float, float]], where: str) -> None:
+    """Each interval finite with 0 <= start < end; sorted by start, none overlaps the next."""
+    for s, e in intervals:
+        if not (math.isfinite(s) and math.isfinite(e)):
+            raise InputError(f"{where}: interval {s!r}-{e!r} s is not finite")
+        if s < 0:
+            raise InputError(f"{where}: interval {s:.6g}-{e:.6g} s starts before the take "
+                             "(negative time)")
+        if not s < e:
+            raise InputError(f"{where}: interval {s:.6g}-{e:.6g} s is empty or runs backwards")
+    ordered = sorted(intervals)
+    for (s0, e0), (s1, e1) in zip(ordered, ordered[1:], strict=False):
+        if s1 < e0:
+            raise InputError(f"{where}: intervals {s0:.6g}-{e0:.6g} s and {s1:.6g}-{e1:.6g} s "
+                             "overlap")
+
+
+def check_within_take(intervals, n_frames: int, rate: float, where: str) -> None:
+    """Every interval ends at or before the end of the take, ``n_frames / rate``."""
+    duration = n_frames / rate
+    for s, e in intervals:
+        if e > duration:
+            raise InputError(f"{where}: interval {s:.6g}-{e:.6g} s ends beyond the take "
+                             f"({n_frames} frames at {rate:g} Hz = {duration:.6g} s)")
+
+
+# ------------------------------------------------------------------------------- TextGrid
+
+def read_textgrid_tier(path, tier: str) -> list[tuple[float, float, str]]:
+    """The non-empty intervals ``(start, end, text)`` of an interval tier (praatio)."""
+    from praatio import textgrid
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: TextGrid file not found")
+    try:
+        tg = textgrid.openTextgrid(str(p), includeEmptyIntervals=False)
+    except Exception as e:  # praatio raises several kinds on malformed files
+        detail = str(e).splitlines()[0][:80] if str(e) else "no detail"
+        raise InputError(f"{p}: cannot read as a Praat TextGrid ({type(e).__name__}: "
+                         f"{detail})") from None
+    if tier not in tg.tierNames:
+        tiers = ", ".join(token(t) for t in tg.tierNames[:10]) or "none"
+        raise InputError(f"{p}: no tier {tier!r} (tiers: {tiers})")
+    t = tg.getTier(tier)
+    if not isinstance(t, textgrid.IntervalTier):
+        raise InputError(f"{p}: tier {tier!r} is a point tier; sentences need an interval tier")
+    out = [(float(e.start), float(e.end), _clean_name(e.label)) for e in t.entries
+           if str(e.label).strip()]
+    if not out:
+        raise InputError(f"{p}: tier {tier!r} has no non-empty interval")
+    return out
+
+
+# ------------------------------------------------------------------------------- C3D events
+
+@dataclass(frozen=True)
+class TakeEvents:
+    events: list[tuple[str, float]]   # (label, time in s from the take's first sample)
+    rate: float
+    n_frames: int
+
+
+def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
+    """A C3D take's EVENT group: labels and times from the take's first sample.
+
+    EVENT:TIMES count from frame 1 of the capture (minutes and seconds, added); in a trial
+    that starts later (header first frame f > 1) they are shifted by (f - 1) / rate. Times
+    within ``EVENT_SNAP_FRAMES`` of a sample are snapped to it (they are stored as 32-bit
+    floats). With ``subject_prefix``, events of other subjects (EVENT:SUBJECTS) are ignored.
+    """
+    import ezc3d
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: file not found")
+    try:
+        c = ezc3d.c3d(str(p))
+    except Exception as e:
+        raise InputError(f"{p}: cannot read as C3D ({type(e).__name__}: "
+                         f"{str(e).splitlines()[0] if str(e) else 'no detail'})") from None
+    point = c["parameters"]["POINT"]
+    rate_v = np.ravel(point["RATE"]["value"]) if "RATE" in point else np.array([])
+    rate = float(rate_v[0]) if rate_v.size else float(c["header"]["points"]["frame_rate"])
+    if not math.isfinite(rate) or rate <= 0:
+        raise InputError(f"{p}: POINT:RATE must be positive, got {rate}")
+    n_frames = int(np.shape(c["data"]["points"])[2])
+    first = int(c["header"]["points"]["first_frame"])  # 0-based: header word 4 minus 1
+    group = c["parameters"].get("EVENT", {})
+    used = int(np.ravel(group["USED"]["value"])[0]) if "USED" in group else 0
+    if used == 0:
+        raise InputError(f"{p}: no events (the C3D EVENT group is missing or empty)")
+    labels = [str(x).strip() for x in group["LABELS"]["value"]][:used]
+    times = np.asarray(group["TIMES"]["value"], dtype=float).reshape(2, -1)[:, :used]
+    subjects = ([str(x).strip() for x in group["SUBJECTS"]["value"]][:used]
+                if "SUBJECTS" in group else [""] * used)
+    events = []
+    for lab, minutes, seconds, subj in zip(labels, times[0], times[1], subjects, strict=False):
+        if subject_prefix and subj and subj != subject_prefix:
+            continue
+        t = float(minutes) * 60.0 + float(seconds) - first / rate
+        k = round(t * rate)
+        if abs(t * rate - k) <= EVENT_SNAP_FRAMES:
+            t = k / rate
+        events.append((lab, t))
+    return TakeEvents(events, rate, n_frames)
+
+
+def pair_events(events: list[tuple[str, float]], start_label: str, end_label: str,
+                where: str) -> list[tuple[float, float]]:
+    """Intervals from each start event to the next end event; anything unpaired is an error."""
+    chosen = [(t, lab) for lab, t in events if lab in (start_label, end_label)]
+    if not chosen:
+        have = sorted({lab for lab, _ in events})
+        listing = ", ".join(token(x) for x in have[:10]) or "none"
+        raise InputError(f"{where}: no events labelled {start_label!r} or {end_label!r} "
+                         f"(events in the file: {listing})")
+    # at equal times an end closes the previous sentence before a start opens the next
+    chosen.sort(key=lambda x: (x[0], 0 if x[1] == end_label else 1))
+    pairs: list[tuple[float, float]] = []
+    open_t: float | None = None
+    for t, lab in chosen:
+        is_start = lab == start_label if start_label != end_label else open_t is None
+        if is_start:
+            if open_t is not None:
+                raise InputError(f"{where}: unpaired events: {start_label!r} at {open_t:.4f} s "
+                                 f"is followed by another {start_label!r} at {t:.4f} s before "
+                                 f"an {end_label!r}")
+            open_t = t
+        else:
+            if open_t is None:
+                raise InputError(f"{where}: unpaired events: {end_label!r} at {t:.4f} s has no "
+                                 f"{start_label!r} before it")
+            pairs.append((open_t, t))
+            open_t = None
+    if open_t is not None:
+        raise InputError(f"{where}: unpaired events: {start_label!r} at {open_t:.4f} s has no "
+                         f"{end_label!r} after it")
+    return pairs
+
+
+# ------------------------------------------------------------------------------- TSV
+
+def read_interval_table(path) -> list[tuple[int, str, float, float, str]]:
+    """Rows ``(line, take, start_s, end_s, name)`` of a segments table."""
+    import pandas as pd
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: segments table not found")
+    try:
+        df = pd.read_csv(p, sep="\t", dtype=str, keep_default_na=False, comment="#")
+    except Exception as e:
+        raise InputError(f"{p}: cannot be parsed as TSV ({str(e).splitlines()[0][:80]})") \
+            from None
+    df.columns = [str(c).strip() for c in df.columns]
+    missing = [c for c in TSV_COLUMNS if c not in df.columns]
+    if missing:
+        raise InputError(f"{p}: missing column(s) {', '.join(missing)}; expected "
+                         f"{', '.join(TSV_COLUMNS)} (tab-separated)")
+    if df.empty:
+        raise InputError(f"{p}: segments table has no rows")
+    rows = []
+    for i, r in enumerate(df.itertuples(index=False), start=2):
+        rec = dict(zip(df.columns, r, strict=True))
+        vals = []
+        for col in ("start_s", "end_s"):
+            try:
+                vals.append(float(str(rec[col]).strip()))
+            except ValueError:
+                raise InputError(f"{p}, line {i}: {col} {token(rec[col])} is not a "
+                                 "number") from None
+        name = _clean_name(rec["name"])
+        if not name:
+            raise InputError(f"{p}, line {i}: empty name")
+        take = str(rec["take"]).strip()
+        if not take:
+            raise InputError(f"{p}, line {i}: empty take")
+        rows.append((i, take, vals[0], vals[1], name))
+    return rows
+
+
+# ------------------------------------------------------------------------------- the sheet
+
+def _unique_names(segments: list[Segment]) -> list[Segment]:
+    """A name used more than once gets ' [2]', ' [3]', ... on its later uses, in order."""
+    seen: dict[str, int] = {}
+    out = []
+    for s in segments:
+        k = seen.get(s.name, 0) + 1
+        seen[s.name] = k
+        out.append(s if k == 1 else Segment(f"{s.name} [{k}]", s.take, s.start_s, s.end_s))
+    return out
+
+
+def segment_subject(cell: str, takes: list[str], fmt: str, sheet_dir, where: str,
+                    shared_data=None, subject_prefix: str | None = None
+                    ) -> tuple[list[Segment], list[str]]:
+    """A subject's sentences from its ``segments`` cell, and the files they were read from.
+
+    Intervals are checked here (finite, non-negative, non-overlapping; for C3D events also
+    within the take); that an interval ends within a take of another format is checked when
+    the take is read (:func:`frame_range`).
+    """
+    spec = parse_spec(cell, where)
+    sheet_dir = Path(sheet_dir)
+    segments: list[Segment] = []
+    sources: list[str] = []
+    if spec.kind == "textgrid":
+        if "{stem}" not in spec.path and len(takes) > 1:
+            raise InputError(f"{where}: segments path {spec.path!r} must hold {{stem}} (one "
+                             f"TextGrid per take) since the subject has {len(takes)} takes")
+        for take in takes:
+            path = _resolve(spec.path, take, sheet_dir, shared_data)
+            try:
+                rows = read_textgrid_tier(path, spec.tier)
+                check_intervals([(s, e) for s, e, _ in rows], f"{path} tier {spec.tier!r}")
+            except InputError as e:
+                raise InputError(f"{where}: {e}") from None
+            segments += [Segment(name, take, s, e) for s, e, name in sorted(rows)]
+            sources.append(str(path))
+    elif spec.kind == "events":
+        if fmt != "c3d":
+            raise InputError(f"{where}: segments 'events:' reads C3D events, but the format is "
+                             f"{fmt!r}; use textgrid: or tsv: instead")
+        for take in takes:
+            try:
+                ev = read_c3d_events(take, subject_prefix)
+                pairs = pair_events(ev.events, spec.start_label, spec.end_label, str(take))
+                check_intervals(pairs, str(take))
+                check_within_take(pairs, ev.n_frames, ev.rate, str(take))
+            except InputError as e:
+                raise InputError(f"{where}: {e}") from None
+            stem = Path(take).stem
+            segments += [Segment(f"{stem}_{k + 1:02d}", take, s, e)
+                         for k, (s, e) in enumerate(sorted(pairs))]
+    else:
+        segments, sources = _segments_from_tables(spec, takes, sheet_dir, where, shared_data)
+    return _unique_names(segments), sources
+
+
+def _segments_from_tables(spec, takes, sheet_dir, where, shared_data):
+    by_key: dict[str, str] = {}
+    for take in takes:
+        for key in (Path(take).stem, Path(take).name):
+            if key in by_key and by_key[key] != take:
+                raise InputError(f"{where}: takes {by_key[key]} and {take} share the name "
+                                 f"{key!r}; a segments table cannot tell them apart")
+            by_key[key] = take
+    per_take = "{stem}" in spec.path
+    tables = ([(take, _resolve(spec.path, take, sheet_dir, shared_data)) for take in takes]
+              if per_take else [(None, _resolve(spec.path, takes[0], sheet_dir, shared_data))])
+    rows_of: dict[str, list[tuple[int, float, float, str, Path]]] = {t: [] for t in takes}
+    sources = []
+    for own_take, path in tables:
+        try:
+            rows = read_interval_table(path)
+        except InputError as e:
+            raise InputError(f"{where}: {e}") from None
+        sources.append(str(path))
+        for line, key, s, e, name in rows:
+            take = by_key.get(key)
+            if take is None or (own_take is not None and take != own_take):
+                have = ", ".join(Path(t).stem for t in takes[:8])
+                what = (f"the take of this table is {Path(own_take).stem!r}" if own_take
+                        else f"the subject's takes are {have}{', ...' if len(takes) > 8 else ''}")
+                raise InputError(f"{where}: {path}, line {line}: take {token(key)} is not a "
+                                 f"recording of this subject ({what})")
+            rows_of[take].append((line, s, e, name, path))
+    segments = []
+    for take in takes:
+        rows = rows_of[take]
+        if not rows:
+            raise InputError(f"{where}: segments table(s) {', '.join(sources)} have no row for "
+                             f"take {Path(take).stem!r}")
+        try:
+            check_intervals([(s, e) for _, s, e, _, _ in rows],
+                            f"{rows[0][4]} (take {Path(take).stem!r})")
+        except InputError as e:
+            raise InputError(f"{where}: {e}") from None
+        segments += [Segment(name, take, s, e) for _, s, e, name, _ in
+                     sorted(rows, key=lambda r: r[1])]
+    return segments, sources
+
+
+# ------------------------------------------------------------------------------- cutting
+
+def first_sample_at_or_after(t: float, rate: float) -> int:
+    """The smallest i >= 0 with i / rate >= t (evaluated as the sample times are)."""
+    i = max(0, math.ceil(t * rate))
+    while i > 0 and (i - 1) / rate >= t:
+        i -= 1
+    while i / rate < t:
+        i += 1
+    return i
+
+
+def frame_range(start_s: float, end_s: float, rate: float, n_frames: int,
+                where: str) -> tuple[int, int]:
+    """Samples ``i0 .. i1-1`` whose times ``i / rate`` lie in ``[start_s, end_s)``."""
+    check_within_take([(start_s, end_s)], n_frames, rate, where)
+    i0 = first_sample_at_or_after(start_s, rate)
+    i1 = min(first_sample_at_or_after(end_s, rate), n_frames)
+    if i1 <= i0:
+        raise InputError(f"{where}: interval {start_s:.6g}-{end_s:.6g} s holds no sample at "
+                         f"{rate:g} Hz")
+    return i0, i1
+
+
+def cut(rec: Recording, seg: Segment) -> Recording:
+    """The part of a take that is the sentence ``seg`` (the whole take when it has no interval)."""
+    if seg.whole:
+        return rec
+    where = f"{rec.source or seg.take} (sentence {seg.name!r})"
+    i0, i1 = frame_range(float(seg.start_s), float(seg.end_s), rec.rate, rec.n_frames, where)
+    return Recording(rec.labels, rec.points[i0:i1].copy(), rec.rate,
+                     source=f"{rec.source or seg.take} [{seg.name}]",
+                     filled=rec.filled[i0:i1].copy(), units=rec.units,
+                     units_source=rec.units_source)

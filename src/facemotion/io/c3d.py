@@ -1,0 +1,253 @@
+"""C3D files, read and written through ezc3d, with their declared layout checked first.
+
+A C3D file shorter than its header declares would otherwise read back with frames silently
+missing; :func:`check_c3d_size` compares the file's size with the layout its header and
+parameters declare."""
+
+from __future__ import annotations
+
+import errno
+import logging
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from facemotion.errors import InputError
+from facemotion.io.atomic import atomic_path
+from facemotion.io.base import check_readable, unit_scale
+from facemotion.io.recording import Recording, finite_samples
+
+_C3D_PROCESSORS = {84: "Intel", 85: "DEC", 86: "MIPS"}
+
+
+C3D_MAX_FRAMES = 65535  # ezc3d writes the frame count as a 16-bit word
+
+
+@dataclass
+class C3DLayout:
+    """What a C3D file's header (and parameters) declare about its data section."""
+
+    processor: str          # Intel, DEC or MIPS (byte order and float format)
+    points: int             # 3-D points per frame
+    analog_per_frame: int   # analog samples per 3-D frame (all channels)
+    first_frame: int
+    last_frame: int
+    frames: int
+    float_storage: bool     # POINT:SCALE < 0: 4-byte floats, else 2-byte integers
+    data_start: int         # byte offset of the data section
+
+    @property
+    def data_bytes(self) -> int:
+        """Bytes of the data section: frames x (4 words per point + analog samples)."""
+        word = 4 if self.float_storage else 2
+        return self.frames * (4 * self.points + self.analog_per_frame) * word
+
+    @property
+    def size(self) -> int:
+        """The smallest file size that holds every declared frame."""
+        return self.data_start + self.data_bytes
+
+
+def _c3d_float(raw: bytes, processor: str) -> float:
+    if processor == "DEC":  # VAX F-float: 16-bit words swapped, exponent bias 2 more than IEEE
+        return struct.unpack("<f", raw[2:4] + raw[0:2])[0] / 4.0
+    return struct.unpack(">f" if processor == "MIPS" else "<f", raw)[0]
+
+
+def _c3d_parameter(section: bytes, processor: str, group: str, name: str):
+    """First value of parameter GROUP:NAME from a C3D parameter section (None if absent)."""
+    end = ">" if processor == "MIPS" else "<"
+    pos, groups, params = 4, {}, {}
+    while pos + 2 <= len(section):
+        nchars, ident = struct.unpack("bb", section[pos:pos + 2])
+        if nchars == 0:
+            break
+        key = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1").strip().upper()
+        off_at = pos + 2 + abs(nchars)
+        if off_at + 2 > len(section):
+            break
+        (offset,) = struct.unpack(end + "h", section[off_at:off_at + 2])
+        body = off_at + 2
+        if ident < 0:
+            groups[key] = -ident
+        elif body + 2 <= len(section):
+            dtype, ndim = struct.unpack("bb", section[body:body + 2])
+            params[(ident, key)] = (dtype, section[body + 2 + ndim:body + 2 + ndim + 4])
+        if offset <= 0:
+            break
+        pos = off_at + offset
+    found = params.get((groups.get(group.upper()), name.upper()))
+    if found is None:
+        return None
+    dtype, raw = found
+    if dtype == 2 and len(raw) >= 2:
+        return struct.unpack(end + "H", raw[:2])[0]
+    if dtype == 4 and len(raw) >= 4:
+        return _c3d_float(raw[:4], processor)
+    if dtype == 1 and raw:
+        return raw[0]
+    return None
+
+
+def c3d_layout(path) -> C3DLayout:
+    """Read the layout a C3D file declares: its 512-byte header, and POINT:FRAMES when the
+    header's 16-bit frame numbers cannot hold the count (the C3D User Guide's convention)."""
+    p = Path(path)
+    with open(p, "rb") as fh:
+        head = fh.read(512)
+        if len(head) < 512 or head[1] != 0x50:
+            raise InputError(f"{p}: not a C3D file (no valid 512-byte header)")
+        fh.seek((head[0] - 1) * 512)
+        section = fh.read(255 * 512)
+    if len(section) < 4 or section[3] not in _C3D_PROCESSORS:
+        raise InputError(f"{p}: C3D parameter section is missing or cut short "
+                         f"(processor type byte {section[3] if len(section) > 3 else None})")
+    section = section[:max(section[2], 1) * 512]
+    processor = _C3D_PROCESSORS[section[3]]
+    end = ">" if processor == "MIPS" else "<"
+    points, analog, first, last = struct.unpack(end + "4H", head[2:10])
+    # sign of the scale factor (a float in the processor's format; only its sign bit matters)
+    sign_byte = {"Intel": head[15], "DEC": head[13], "MIPS": head[12]}[processor]
+    float_storage = bool(sign_byte & 0x80)
+    (start_block,) = struct.unpack(end + "H", head[16:18])
+    frames = last - first + 1
+    if last == 0xFFFF or frames <= 0:
+        declared = _c3d_parameter(section, processor, "POINT", "FRAMES")
+        if declared is not None:
+            frames = int(declared)
+    return C3DLayout(processor, points, analog, first, last, max(frames, 0), float_storage,
+                     (max(start_block, 1) - 1) * 512)
+
+
+def check_c3d_size(path) -> C3DLayout:
+    """InputError if the file is shorter than its header declares (cut in the data section,
+    or its last bytes lost); ezc3d would otherwise read it with frames silently missing."""
+    p = Path(path)
+    layout = c3d_layout(p)
+    size = p.stat().st_size
+    if size < layout.size:
+        per_frame = max(layout.data_bytes // max(layout.frames, 1), 1)
+        whole = max(size - layout.data_start, 0) // per_frame
+        raise InputError(
+            f"{p}: C3D file is cut short: its header declares frames {layout.first_frame}-"
+            f"{layout.first_frame + layout.frames - 1} ({layout.frames} frames) of "
+            f"{layout.points} points and {layout.analog_per_frame} analog samples per frame in "
+            f"{'float' if layout.float_storage else 'integer'} storage, {layout.size} bytes, "
+            f"but the file has {size} bytes (only {whole} whole frames)")
+    per_frame = layout.data_bytes // max(layout.frames, 1)
+    # writers pad the data to whole 512-byte blocks (ezc3d adds a whole block when it is full)
+    if per_frame and size - layout.size > 512 and size - layout.size >= per_frame:
+        raise InputError(
+            f"{p}: C3D file holds {size - layout.size} bytes after the {layout.frames} frames "
+            f"its header declares (about {(size - layout.size) // per_frame} more frames): the "
+            "header's frame count is wrong (e.g. more than 65535 frames)")
+    return layout
+
+
+def read_c3d(path, units: str | None = None) -> Recording:
+    """Read the 3-D points of a C3D file with ezc3d.
+
+    Labels come from POINT:LABELS (whitespace stripped), the rate from POINT:RATE and the units
+    from POINT:UNITS (``units`` only for a file without them). The file's size is checked
+    against its header first (:func:`check_c3d_size`). Points that POINT:ANGLES, FORCES,
+    MOMENTS, POWERS, SCALARS, REACTIONS or MODELED_MARKERS list are not markers and are left
+    out, with a log line (:mod:`facemotion.io.c3d_points`). Coordinates are taken at the
+    32-bit precision C3D stores (floats, or 16-bit integers times a 32-bit scale), so the
+    integer and real variants of one trial read identically. A sample is missing (NaN) if its
+    residual is negative (C3D's "invalid" flag), if any coordinate is NaN, or if it is exactly
+    (0, 0, 0) with a residual that is not positive (the exporters' other way of writing
+    "no data").
+    """
+    import ezc3d
+
+    from facemotion.io.c3d_points import describe_dropped, non_marker_points
+
+    p = check_readable(path)
+    check_c3d_size(p)
+    try:
+        c = ezc3d.c3d(str(p))
+    except Exception as e:  # ezc3d raises RuntimeError/IOError with terse messages
+        raise InputError(f"{p}: cannot read as C3D ({type(e).__name__}: "
+                         f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})") from None
+    point = c["parameters"]["POINT"]
+    data = np.asarray(c["data"]["points"], dtype=float)  # (4, markers, frames)
+    n = data.shape[1]
+    labels = [str(x).strip() for x in point["LABELS"]["value"]] if "LABELS" in point else []
+    # Files with more than 255 points continue the labels in LABELS2, LABELS3, ...
+    k = 2
+    while len(labels) < n and f"LABELS{k}" in point:
+        labels += [str(x).strip() for x in point[f"LABELS{k}"]["value"]]
+        k += 1
+    if len(labels) < n:
+        raise InputError(f"{p}: POINT:LABELS has {len(labels)} labels for {n} points")
+    labels = labels[:n]
+    not_markers = non_marker_points(point, labels)
+    if not_markers:
+        logging.getLogger("facemotion").info(
+            "%s: left out %d points that are not markers (%s)", p, len(not_markers),
+            describe_dropped(not_markers))
+    kept = [i for i, lab in enumerate(labels) if lab not in not_markers]
+    if not kept:
+        raise InputError(f"{p}: no marker points (all {n} points are "
+                         f"{', '.join(sorted(set(not_markers.values())))})")
+    labels = [labels[i] for i in kept]
+    empty = [kept[i] for i, lab in enumerate(labels) if not lab]
+    if empty:
+        raise InputError(f"{p}: point(s) {empty[:5]} have an empty label in POINT:LABELS")
+    rate_v = np.ravel(point["RATE"]["value"]) if "RATE" in point else np.array([])
+    rate = float(rate_v[0]) if rate_v.size else float(c["header"]["points"]["frame_rate"])
+    u = point["UNITS"]["value"] if "UNITS" in point else []
+    u = [str(x).strip() for x in u] if not isinstance(u, str) else [u.strip()]
+    if u and u[0]:
+        used, source = u[0], "file"
+    elif units is not None:
+        used, source = units, "sheet"
+    else:
+        raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
+    scale = unit_scale(used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
+    # (frames, markers, 3); float32 first: the precision the file stores (see the docstring)
+    xyz = data[:3, kept].astype(np.float32).astype(float).transpose(2, 1, 0) * scale
+    meta = c["data"].get("meta_points", {})
+    if "residuals" in meta and np.size(meta["residuals"]):
+        residual = np.asarray(meta["residuals"], dtype=float)[0, kept].T  # (frames, markers)
+    else:
+        residual = np.zeros(xyz.shape[:2])
+    invalid = (residual < 0) | ~finite_samples(xyz)
+    invalid |= (xyz[..., 0] == 0) & (xyz[..., 1] == 0) & (xyz[..., 2] == 0) & ~(residual > 0)
+    xyz[invalid] = np.nan
+    return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
+
+
+def write_c3d(path, rec: Recording) -> None:
+    """Write the points of ``rec`` to a C3D file (mm; residual -1 where a sample is NaN)."""
+    import ezc3d
+
+    if rec.n_frames == 0:
+        raise InputError(f"{path}: a recording without frames cannot be written to C3D")
+    if rec.n_frames > C3D_MAX_FRAMES:
+        raise InputError(f"{path}: {rec.n_frames} frames cannot be written to C3D (ezc3d "
+                         f"writes at most {C3D_MAX_FRAMES}); write TRC or CSV")
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [float(rec.rate)]
+    c["parameters"]["POINT"]["LABELS"]["value"] = tuple(rec.labels)
+    c["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    pts = np.ones((4, rec.n_markers, rec.n_frames))
+    pts[:3] = rec.points.transpose(2, 1, 0)
+    bad = ~np.isfinite(rec.points).all(axis=2).T  # (markers, frames)
+    pts[:3, bad] = np.nan
+    c["data"]["points"] = pts
+    residuals = np.zeros((1, rec.n_markers, rec.n_frames))
+    residuals[0, bad] = -1.0
+    c["data"]["meta_points"]["residuals"] = residuals
+    c["data"]["meta_points"]["camera_masks"] = np.zeros((7, rec.n_markers, rec.n_frames),
+                                                        dtype=bool)
+    with atomic_path(path, suffix=".c3d") as tmp:  # ezc3d adds .c3d otherwise
+        c.write(str(tmp))
+        # ezc3d does not report a failed write (disk full, file-size limit): check the size
+        try:
+            check_c3d_size(tmp)
+        except InputError:
+            raise OSError(errno.EIO, "the written C3D file is incomplete (disk full or file-size "
+                          "limit?)", str(path)) from None

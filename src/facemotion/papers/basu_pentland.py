@@ -1,0 +1,116 @@
+"""Basu & Pentland (1997): the lip model's published values and its statements beside ours.
+
+The 99.2 % of variance in 10 modes, the six cells of Table 1 and their ratios, and the mesh and
+DOF counts.
+"""
+
+from __future__ import annotations
+
+from facemotion.papers.table import BP, RULE_1_5_10, RULE_EXACT, Inputs, Rows, factor_verdict
+
+# B&P Table 1: reconstruction error per DOF in the model's normalised units
+BP_TABLE_1 = {("xyz_8_points", "10_modes"): 1.10e-3, ("xyz_8_points", "full_covariance"): 7.80e-4,
+              ("yz_all_points", "10_modes"): 7.13e-4, ("yz_all_points", "full_covariance"): 4.38e-4,
+              ("xy_all_points", "10_modes"): 6.70e-3, ("xy_all_points", "full_covariance"): 7.50e-3}
+
+
+BP_VIEW = {"xyz_8_points": "xyz of 8 points", "yz_all_points": "yz of all points",
+           "xy_all_points": "xy of all points"}
+
+
+def statements(R: Rows, inp: Inputs) -> None:
+    rec, counts = inp.lip_reconstruction, inp.lip_counts
+    ls = inp.lip_subject
+    out_rec, out_cnt = f"lip_reconstruction:{ls}", f"lip_counts:{ls}"
+    # 99.2 % of the variance in 10 modes
+    q = None
+    if counts is not None:
+        sel = counts[counts["quantity"].astype(str) == "variance_in_modes_percent"]
+        if len(sel):
+            q = float(sel["our_value"].iloc[0])
+    v = ("not measured" if q is None else "reproduced" if abs(q - 99.2) <= 0.5
+         else "same shape" if q >= 95 else "differs")
+    R.add(BP, "Sec. 5", "the first 10 modes cover 99.2 % of the variance", 99.2, q,
+          f"variance of the fitted deformations in the first 10 PCA modes, % ({ls} talker)",
+          out_cnt, v, "reproduced: within 0.5 percentage points; same shape: >= 95 %; differs: "
+          "otherwise", False)
+    # Table 1 cells
+    cells: dict[tuple[str, str], float] = {}
+    if rec is not None:
+        paper_rows = rec[rec["paper_definition"].astype(str).str.lower().isin(["true", "1"])]
+        for _, row in paper_rows.iterrows():
+            cells[(str(row["view"]), str(row["covariance"]))] = float(
+                row["mse_per_dof_model_units2"])
+    for (view, cov), pv in BP_TABLE_1.items():
+        our = cells.get((view, cov))
+        R.add(BP, "Table 1", f"{BP_VIEW[view]}, {cov.replace('_', ' ')}", pv, our,
+              f"MSE per DOF, paper's model units^2, 10 test frames, tracked points, sigma^2 = 0 "
+              f"({ls} talker)", out_rec,
+              "not measured" if our is None else factor_verdict(our, pv, 1.5, 10.0),
+              RULE_1_5_10, False)
+    # ratios and orderings (scale-free)
+    ratios = [
+        ("xy / yz, 10 modes (frontal against profile)", ("xy_all_points", "10_modes"),
+         ("yz_all_points", "10_modes")),
+        ("xy / yz, full covariance", ("xy_all_points", "full_covariance"),
+         ("yz_all_points", "full_covariance")),
+        ("xyz of 8 points / yz, 10 modes", ("xyz_8_points", "10_modes"),
+         ("yz_all_points", "10_modes")),
+        ("full covariance / 10 modes, xyz of 8 points", ("xyz_8_points", "full_covariance"),
+         ("xyz_8_points", "10_modes")),
+        ("full covariance / 10 modes, yz of all points", ("yz_all_points", "full_covariance"),
+         ("yz_all_points", "10_modes")),
+        ("full covariance / 10 modes, xy of all points", ("xy_all_points", "full_covariance"),
+         ("xy_all_points", "10_modes")),
+    ]
+    for st, a, b in ratios:
+        pv = BP_TABLE_1[a] / BP_TABLE_1[b]
+        our = cells[a] / cells[b] if a in cells and b in cells and cells[b] > 0 else None
+        if our is None:
+            v = "not measured"
+        else:
+            v = factor_verdict(our, pv, 1.5, 1e9)
+            if v == "same shape" and (our > 1) != (pv > 1):
+                v = "differs"
+        R.add(BP, "Table 1", f"ratio {st}", pv, our, "ratio of two Table 1 cells (scale-free)",
+              out_rec, v, "reproduced: within 1.5x; same shape: on the same side of 1; differs: "
+              "otherwise", False)
+    for cov in ("10_modes", "full_covariance"):
+        keys = [(v_, cov) for v_ in ("yz_all_points", "xyz_8_points", "xy_all_points")]
+        paper_order = sorted(keys, key=lambda k_: BP_TABLE_1[k_])
+        our = None
+        if all(k_ in cells for k_ in keys):
+            our = " < ".join(BP_VIEW[k_[0]].split(" ")[0] + ("8" if "8" in k_[0] else "")
+                             for k_ in sorted(keys, key=lambda k_: cells[k_]))
+        pv = " < ".join(BP_VIEW[k_[0]].split(" ")[0] + ("8" if "8" in k_[0] else "")
+                        for k_ in paper_order)
+        R.add(BP, "Table 1, Sec. 5", f"view ordering, {cov.replace('_', ' ')}", pv, our,
+              "views sorted by their error (best first)", out_rec,
+              "not measured" if our is None else "reproduced" if our == pv else "differs",
+              RULE_EXACT, False)
+    # mesh and DOF counts
+    wanted = [("triangles", "faces of the mesh", 336, "Sec. 2.1"),
+              ("nodes", "nodes of the mesh", 204, "Sec. 2.1"),
+              ("dof", "degrees of freedom (three per node)", 612, "Sec. 2.1"),
+              ("constrained_dof", "constrained DOF (16 lip points x 3)", 48, "Sec. 4.1"),
+              ("free_dof", "free DOF (columns of P)", 600, "Sec. 4.1")]
+    for q_, st, pv, where in wanted:
+        our = None
+        if counts is not None:
+            sel = counts[counts["quantity"].astype(str) == q_]
+            if len(sel):
+                our = int(round(float(sel["our_value"].iloc[0])))
+        R.add(BP, where, st, pv, our, f"count on the {ls} talker's mesh", out_cnt,
+              "not measured" if our is None else "reproduced" if our == pv else "differs",
+              RULE_EXACT, True)
+    ds = None
+    if counts is not None:
+        sel = counts[counts["quantity"].astype(str) == "depth_share_test_frames"]
+        if len(sel):
+            ds = float(sel["our_value"].iloc[0])
+    R.add(BP, "Sec. 5", "significant depth variation in the test frames",
+          "significant", ds, "share of the depth (z) axis in the tracked points' displacement "
+          "variance over the test frames", out_cnt,
+          "not measured" if ds is None else "reproduced" if ds >= 1 / 3 else "differs",
+          "reproduced: >= 1/3 (at least an average axis; the lip talker's calibration target); "
+          "differs: otherwise", True)
