@@ -19,17 +19,20 @@ include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/compare.smk"
 
 
-# Scheduling on few cores (rules' priority:): the virtual subjects and their loading first (every
-# analysis waits for them), then the analysis jobs longest first (animation, region maps,
-# held-out evaluation, sentence sweep, subsets, ranking, the lip model, the redundancy check),
-# and the comparison with the papers as soon as its inputs exist, so that short jobs share the
-# cores at the end instead of a long one running alone.
+# One job per dataset (per virtual subject, lip subject, k, sweep point) through wildcards;
+# the tables and figures across datasets are aggregation rules of their own. Scheduling on few
+# cores (rules' priority:): the virtual subjects and their loading first (every analysis waits
+# for them), then the analysis jobs longest first (animation, region maps, held-out
+# evaluation, sentence sweep, subsets, ranking, the lip model, the redundancy check), and the
+# comparison with the papers as soon as its inputs exist.
 
 
 # Small aggregation rules (tables and figures across datasets, the summary, the manifest) run
 # on the machine Snakemake runs on, never as cluster jobs of their own.
 localrules:
     all,
+    summarise_ranking,
+    summarise_heldout,
     summarise_sweep,
     summarise_talkers,
     compare_with_papers,

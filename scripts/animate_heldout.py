@@ -8,7 +8,8 @@ from facemotion.io.atomic import atomic_write_bytes
 from facemotion.plots.animation import FaceAnimation, animation_page, frame_indices, write_animation
 from facemotion.ranking.routes import rank_for_study
 from facemotion.regions.prediction import predict
-from facemotion.study.adapter import figure_paths, run_per_dataset
+from facemotion.study.adapter import run_step
+from facemotion.study.outputs import figure_files
 from facemotion.study.provenance import save_figure, sidecar_for_existing
 
 
@@ -44,7 +45,7 @@ def main(sm, log, prov):
     sidecar_for_existing(sm.output.page, "animation_page", prov)
     peak = int(np.argmax(np.abs(measured[idx]).sum(axis=(1, 2))))
     fig = anim.still(peak, captions[peak] + " - largest motion")
-    save_figure(fig, figure_paths(sm.output, "png"), "animation_still", prov)
+    save_figure(fig, figure_files(sm.output, "png"), "animation_still", prov)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+run_step(snakemake, main)  # noqa: F821

@@ -3,7 +3,7 @@
 from facemotion.ingest.displacement_file import load_displacements
 from facemotion.ingest.displacements import split_roles
 from facemotion.regions.optimality import subset_optimality
-from facemotion.study.adapter import run_per_dataset
+from facemotion.study.adapter import run_step
 from facemotion.study.provenance import write_table
 
 
@@ -13,4 +13,4 @@ def main(sm, log, prov):
     write_table(table, sm.output.table, "optimality", prov)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+run_step(snakemake, main)  # noqa: F821

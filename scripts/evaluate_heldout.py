@@ -1,5 +1,4 @@
-"""Held-out error against k (paper Fig. 10) and a measured-vs-model trajectory (Fig. 9); then
-the error curves of all datasets overlaid."""
+"""Held-out error against k (paper Fig. 10) and a measured-vs-model trajectory (Fig. 9)."""
 
 import numpy as np
 import pandas as pd
@@ -10,7 +9,8 @@ from facemotion.ingest.displacements import split_roles
 from facemotion.plots.error_curves import plot_error_curves, plot_trajectory
 from facemotion.ranking.routes import rank_for_study
 from facemotion.regions.prediction import error_curve, predict
-from facemotion.study.adapter import across_provenance, figure_paths, run_per_dataset
+from facemotion.study.adapter import run_step
+from facemotion.study.outputs import figure_files
 from facemotion.study.provenance import save_figure, write_table
 
 
@@ -25,7 +25,7 @@ def main(sm, log, prov):
              p.k_max, ranking.numerical_rank())
     write_table(curve, sm.output.curve, "error_curve", prov)
     fig = plot_error_curves({p.label: curve}, n_markers={p.label: len(held.labels)})
-    save_figure(fig, figure_paths(sm.output, "png"), "error_curve", prov)
+    save_figure(fig, figure_files(sm.output, "png"), "error_curve", prov)
 
     # Trajectory of one marker in one held-out sentence, model with k main markers.
     k = p.k  # checked against the markers at parse time (never clamped)
@@ -67,16 +67,8 @@ def main(sm, log, prov):
                           note=None if requested == marker else
                           f"marker {requested} requested, not in this dataset" if requested
                           else "no marker requested: the secondary marker that moves most")
-    save_figure(fig, figure_paths(sm.output, "traj_png"), "trajectory", prov)
+    save_figure(fig, figure_files(sm.output, "traj_png"), "trajectory", prov)
 
 
-def across(sm, log):
-    """Held-out error curves of all datasets overlaid (paper Fig. 10)."""
-    prov = across_provenance(sm, sm.output.curve)
-    curves = {sm.params.per_dataset[d]["label"]: pd.read_csv(p, sep="\t")
-              for d, p in zip(sm.params.datasets, sm.output.curve, strict=True)}
-    fig = plot_error_curves(curves)
-    save_figure(fig, figure_paths(sm.output, "across_png"), "error_curves_all", prov)
 
-
-run_per_dataset(snakemake, main, across)  # noqa: F821
+run_step(snakemake, main)  # noqa: F821

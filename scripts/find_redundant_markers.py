@@ -2,7 +2,7 @@
 
 from facemotion.ingest.displacement_file import load_displacements
 from facemotion.regions.redundancy import find_redundant_markers, longest
-from facemotion.study.adapter import run_per_dataset
+from facemotion.study.adapter import run_step
 from facemotion.study.provenance import write_table
 
 
@@ -15,8 +15,8 @@ def main(sm, log, prov):
                                    fill_mask=d.fill_mask)
     log.info("%d suspect interval(s); the %d longest in redundancy_top.tsv", len(table),
              min(len(table), sm.params.top_n))
-    write_table(table, sm.output.table, "redundancy", prov)
-    write_table(longest(table, sm.params.top_n), sm.output.top, "redundancy", prov)
+    write_table(table, sm.output.redundancy, "redundancy", prov)
+    write_table(longest(table, sm.params.top_n), sm.output.redundancy_top, "redundancy", prov)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+run_step(snakemake, main)  # noqa: F821

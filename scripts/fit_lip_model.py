@@ -10,7 +10,8 @@ from facemotion.io.trc import read_trc
 from facemotion.lips.pipeline import grid_lip_study, run_virtual
 from facemotion.lips.virtual import make_virtual_talker
 from facemotion.plots.lips import plot_mesh, plot_modes
-from facemotion.study.adapter import figure_paths, run_per_dataset
+from facemotion.study.adapter import run_step
+from facemotion.study.outputs import figure_files
 from facemotion.study.provenance import save_figure, write_table
 from facemotion.study.sheet import parse_sentences
 
@@ -32,7 +33,7 @@ def main(sm, log, prov):
               "model_extent": None if extent is None else tuple(extent),
               "noise_grid": tuple(p["noise_var_sweep"])}
     if spec["source"] == "grid":
-        result = grid_lip_study(recordings, sm.input.mesh[0], normalisation=p["normalisation"],
+        result = grid_lip_study(recordings, sm.input.mesh, normalisation=p["normalisation"],
                                 **common)
         points = result.heldout_landmarks
         name = "GRID talker"
@@ -52,23 +53,23 @@ def main(sm, log, prov):
     log.info("noise variance of the regularised estimators %.4g model units^2 (%s)",
              result.noise_var, result.noise_var_choice)
     save_figure(plot_mesh(result.mesh, result.tracked, result.mesh.fixed),
-                figure_paths(sm.output, "mesh_png"), "lip_mesh", prov)
+                figure_files(sm.output, "mesh_png"), "lip_mesh", prov)
     write_table(result.modes, sm.output.modes, "lip_modes", prov)
     title = (f"{name} ({subject}): mean displacement and characteristic modes "
              f"(Basu & Pentland 1997, Fig. 9)")
     save_figure(plot_modes(result.mean_displacement, result.mode_shapes, result.mesh,
                            result.mode_sd, result.mode_variance_fraction, result.unit_scale,
                            title=title),
-                figure_paths(sm.output, "modes_png"), "lip_modes", prov)
-    write_table(result.fit_residuals, sm.output.residuals, "lip_fit_residuals", prov)
+                figure_files(sm.output, "modes_png"), "lip_modes", prov)
+    write_table(result.fit_residuals, sm.output.fit_residuals, "lip_fit_residuals", prov)
     recon = result.reconstruction
     recon.insert(0, "lip_subject", subject)
     write_table(recon, sm.output.reconstruction, "lip_reconstruction", prov)
     counts = result.counts
     counts.insert(0, "lip_subject", subject)
     write_table(counts, sm.output.counts, "lip_model_counts", prov)
-    write_table(result.noise_sensitivity, sm.output.sensitivity, "summary", prov)
-    write_table(points, sm.output.heldout, "summary", prov)
+    write_table(result.noise_sensitivity, sm.output.noise_sensitivity, "summary", prov)
+    write_table(points, sm.output.heldout_points, "summary", prov)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+run_step(snakemake, main)  # noqa: F821

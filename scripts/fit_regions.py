@@ -6,7 +6,8 @@ from facemotion.plots.face_mesh import read_face_mesh
 from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
 from facemotion.ranking.routes import rank_for_study
 from facemotion.regions.prediction import fit_coefficients
-from facemotion.study.adapter import figure_paths, run_per_dataset
+from facemotion.study.adapter import run_step
+from facemotion.study.outputs import figure_files
 from facemotion.study.provenance import save_figure, write_table
 
 
@@ -25,12 +26,12 @@ def main(sm, log, prov):
         log.info("maps drawn on the face mesh %s (%d vertices)", sm.input.mesh[0],
                  len(mesh.vertices))
     fig = plot_region_maps(d.neutral, d.labels, X, grid_n=sm.params.grid_n, mesh=mesh)
-    save_figure(fig, figure_paths(sm.output, "png"), "regions", prov)
+    save_figure(fig, figure_files(sm.output, "png"), "regions", prov)
     fig = plot_orthogonal_directions(d.neutral, d.labels, ranking.R,
                                      ranking.labels_in_order,
                                      n_pivots=sm.params.orthogonal_maps,
                                      grid_n=sm.params.grid_n, mesh=mesh)
-    save_figure(fig, figure_paths(sm.output, "orth_png"), "orthogonal_directions", prov)
+    save_figure(fig, figure_files(sm.output, "orth_png"), "orthogonal_directions", prov)
 
 
-run_per_dataset(snakemake, main)  # noqa: F821
+run_step(snakemake, main)  # noqa: F821

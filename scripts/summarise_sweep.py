@@ -3,7 +3,8 @@
 import pandas as pd
 
 from facemotion.plots.cross_subject import plot_sweep_summary
-from facemotion.study.adapter import figure_paths, run_step
+from facemotion.study.adapter import run_step
+from facemotion.study.outputs import figure_files
 from facemotion.study.provenance import save_figure, write_table
 
 
@@ -16,7 +17,7 @@ def main(sm, log, prov):
     table = table.sort_values(["dataset"], kind="stable").reset_index(drop=True)
     write_table(table, sm.output.table, "summary", prov)
     fig = plot_sweep_summary(table, title=f"sweep {sm.wildcards.sweep}")
-    save_figure(fig, figure_paths(sm.output, "png"), "sweep_summary", prov)
+    save_figure(fig, figure_files(sm.output, "png"), "sweep_summary", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

@@ -3,7 +3,8 @@
 import pandas as pd
 
 from facemotion.plots.cross_subject import plot_talkers
-from facemotion.study.adapter import figure_paths, run_step
+from facemotion.study.adapter import run_step
+from facemotion.study.outputs import figure_files
 from facemotion.study.provenance import save_figure, write_table
 from facemotion.study.sweeps import top_k_frequency
 
@@ -25,11 +26,11 @@ def main(sm, log, prov):
         row["heldout_mean_abs_error_mm_k10"] = float(curve.loc[10, "mean_abs_error_mm"])
         rows.append(row)
     table = pd.DataFrame(rows)
-    write_table(table, sm.output.table, "summary", prov)
+    write_table(table, sm.output.talkers, "summary", prov)
     freq = top_k_frequency(pd.DataFrame(selected), k=10)
-    write_table(freq, sm.output.freq, "summary", prov)
+    write_table(freq, sm.output.talkers_top10, "summary", prov)
     fig = plot_talkers(table, freq)
-    save_figure(fig, figure_paths(sm.output, "png"), "talkers", prov)
+    save_figure(fig, figure_files(sm.output, "png"), "talkers", prov)
 
 
 run_step(snakemake, main)  # noqa: F821

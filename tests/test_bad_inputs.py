@@ -30,15 +30,14 @@ import ezc3d
 import numpy as np
 import pandas as pd
 import pytest
-from standin import Names
+from helpers import REPO, SHARED_DATA, Names
 
 from facemotion.io.c3d import c3d_layout, read_c3d, write_c3d
 from facemotion.io.recording import Recording
 from facemotion.io.trc import write_trc
 from facemotion.io.wide_csv import write_csv
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("FACEMOTION_SHARED_DATA", REPO.parent / "shared" / "data"))
+SHARED = SHARED_DATA
 HEAD = ["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside", "Reye_Inside"]
 STARTS = (100, 400, 700, 1000, 1300)  # five 60-frame takes of the jaw exercise
 FRAMES = 60
@@ -84,8 +83,8 @@ def run_load(tmp: Path, paths, fmt="c3d", *, units=None, head=HEAD, exclude=HEAD
              train=(1, 2, 3, 4), heldout=(5,), gaps=None, checks=None) -> Outcome:
     """Run scripts/load_dataset.py as the load_dataset job would, with outputs in tmp/out."""
     out = tmp / "out"
-    names = ["npz", "npz_meta", "gaps", "gaps_meta", "sentences", "sentences_meta", "gap_png",
-             "gap_pdf", "gap_fig_meta"]
+    names = ["npz", "npz_meta", "gap_report", "gap_report_meta", "sentences", "sentences_meta",
+             "gaps", "gaps_more", "gaps_meta"]
     files = ["displacements.npz", "displacements.meta.json", "gap_report.tsv",
              "gap_report.meta.json", "sentences.tsv", "sentences.meta.json", "gaps.png",
              "gaps.pdf", "gaps.meta.json"]
@@ -98,17 +97,16 @@ def run_load(tmp: Path, paths, fmt="c3d", *, units=None, head=HEAD, exclude=HEAD
           "head_markers": list(head), "exclude_markers": list(exclude),
           "include_markers": list(include), "train": list(train), "heldout": list(heldout),
           "sentence_names": [Path(p).stem for p in recordings], "segments": None,
-          "subject_prefix": None}
+          "subject_prefix": None, "copy_markers": []}
 
     data = [p for p in recordings if os.path.isfile(p)]
 
     class SM:  # the load_dataset job over one dataset
         rule = "load_dataset"
         input = Names(data=data)
-        output = Names(**{n: [str(out / f)] for n, f in zip(names, files, strict=True)})
-        params = Names(datasets=["D"], per_dataset={"D": {
-            "ds": ds, "recordings": recordings, "inputs": {"data": data}}},
-            gaps=g, checks=c, neutral="first_frame")
+        output = Names(**{n: [str(out / f)] if n.endswith("_more") else str(out / f)
+                          for n, f in zip(names, files, strict=True)})
+        params = Names(ds=ds, recordings=recordings, gaps=g, checks=c, neutral="first_frame")
         wildcards = Names()
         log = Names([str(tmp / "job.log")])
 
@@ -795,7 +793,7 @@ def tiny_study(tiny_data, tmp_path_factory):
     efbig = snake(work, target_b, fsize=48 * 1024)
     left_after_efbig = sorted(str(p.relative_to(work)) for p in (work / "results").rglob("*")
                               if p.is_file() and "logs" not in p.parts)
-    efbig_log = (work / "results" / "tiny" / "logs" / "load_dataset.log").read_text()
+    efbig_log = (work / "results" / "tiny" / "logs" / "load_dataset" / "B.log").read_text()
     b_run = snake(work, target_b)
     (work / "sheet.tsv").write_text(SHEET_HEAD + sheet_row("A", "a/*.c3d"))
     anim = work / "results" / "tiny" / "A" / "anim"
@@ -813,7 +811,7 @@ def test_file_size_limit_is_one_line_in_log_and_stderr(tiny_study):
     proc = tiny_study["efbig"]
     assert proc.returncode == 1
     ours = [x for x in proc.stderr.splitlines() if x.startswith("facemotion:")]
-    assert len(ours) == 1 and re.search(r"facemotion: load_dataset: cannot write .*: File too "
+    assert len(ours) == 1 and re.search(r"facemotion: load_dataset B: cannot write .*: File too "
                                         "large", ours[0]), proc.stderr[-3000:]
     assert "Traceback" not in proc.stderr
     log = tiny_study["efbig_log"]

@@ -9,12 +9,12 @@ import numpy as np
 import pandas as pd
 import pytest
 from click.testing import CliRunner
+from helpers import REPO
 
 from facemotion.cli import cli, main
 from facemotion.io.recording import Recording
 from facemotion.io.wide_csv import write_csv
 
-REPO = Path(__file__).resolve().parents[1]
 HEAD = ["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside", "Reye_Inside"]
 
 

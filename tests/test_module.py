@@ -5,12 +5,11 @@ with its own config and sheet, and runs it (dry run and a real small target)."""
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pandas as pd
 import pytest
+from helpers import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.workflow
 
 HOST = """\

@@ -9,11 +9,10 @@ from it 1.7-3.3 mm in lbbc2a and lwbsza); with the mean configuration as the ref
 mean residual is 0.27-0.35 mm in those clips. No missing samples in any file.
 """
 
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import require_shared_data
 
 from facemotion.ingest.displacements import build_displacements
 from facemotion.ingest.gaps import fill_gaps
@@ -29,29 +28,20 @@ ANIMFACE_FRAMES = {"animface_jaw.c3d": 1590, "animface_eyebrows.c3d": 902}
 GRID_CLIPS = ["bbaf2n", "lbbc2a", "lwbsza", "pwij3p", "sbwe5n", "swwp2s"]
 
 
-def shared_data() -> Path:
-    env = os.environ.get("FACEMOTION_SHARED_DATA")
-    root = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "data"
-    if not (root / "animface").is_dir() or not (root / "grid").is_dir():
-        pytest.fail(f"real data not found at {root} (expected animface/ and grid/ there); "
-                    "set FACEMOTION_SHARED_DATA to the shared data folder")
-    return root
-
-
 @pytest.fixture(scope="module")
 def animface():
-    root = shared_data() / "animface"
+    root = require_shared_data() / "animface"
     return {name: read_recording(root / name, "c3d") for name in ANIMFACE_FRAMES}
 
 
 @pytest.fixture(scope="module")
 def grid():
-    root = shared_data() / "grid"
+    root = require_shared_data() / "grid"
     return {c: read_recording(root / f"grid_{c}.trc", "trc") for c in GRID_CLIPS}
 
 
 def test_every_data_file_is_read(animface, grid):
-    root = shared_data()
+    root = require_shared_data()
     assert sorted(p.name for p in (root / "animface").glob("*.c3d")) == sorted(ANIMFACE_FRAMES)
     assert sorted(p.name for p in (root / "grid").glob("*.trc")) == sorted(
         f"grid_{c}.trc" for c in GRID_CLIPS)
@@ -144,7 +134,6 @@ def test_animface_displacements(animface):
     assert np.abs(chin[d.rows_for([0])]).max() > 3 * np.abs(chin[d.rows_for([1])]).max()
 
 
-def test_missing_data_folder_fails_clearly(monkeypatch, tmp_path):
-    monkeypatch.setenv("FACEMOTION_SHARED_DATA", str(tmp_path / "nowhere"))
+def test_missing_data_folder_fails_clearly(tmp_path):
     with pytest.raises(pytest.fail.Exception, match="real data not found.*nowhere"):
-        shared_data()
+        require_shared_data(tmp_path / "nowhere")

@@ -1,13 +1,13 @@
 """docs/tutorial.ipynb runs top to bottom with the installed package (so it cannot rot), and is
 kept in git without outputs."""
 
-from pathlib import Path
 
 import nbformat
 import pytest
+from helpers import REPO
 from nbclient import NotebookClient
 
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+DOCS = REPO / "docs"
 
 
 def test_notebook_is_stored_without_outputs():

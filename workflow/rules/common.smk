@@ -1,5 +1,6 @@
-# Configuration, subject sheet and datasets; helpers that list each stage's outputs.
+# Configuration, subject sheet and datasets, checked at parse time; each rule's outputs.
 import os
+import re
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -8,6 +9,9 @@ import yaml
 from snakemake.utils import min_version
 
 from facemotion.errors import InputError
+from facemotion.io.registry import read_labels
+from facemotion.io.trc import trc_frame_count
+from facemotion.papers.lucero_munhall import TABLE_I
 from facemotion.study.invocation import (
     ParseGuard,
     invocation_dir,
@@ -16,18 +20,30 @@ from facemotion.study.invocation import (
     same_study_command,
     sample_benchmarks_every,
 )
-from facemotion.study.summary import closing_message, study_name
+from facemotion.study.outputs import artifact, figure_files, sidecar, table, tables
+from facemotion.study.outputs import figure as _figure
 from facemotion.study.settings import (
-    DataCounts,
     check_lip_frames,
     check_settings,
     check_sweep,
     data_counts,
     exit_on_error,
+    merge_default_config,
     validate_config,
     validate_sheet,
 )
-from facemotion.study.sheet import read_subject_sheet, resolve_datasets
+from facemotion.study.sheet import (
+    dataset_params,
+    read_subject_sheet,
+    resolve_datasets,
+    simulation_params,
+    virtual_talkers,
+)
+from facemotion.study.summary import closing_message, study_name
+from facemotion.study.sweeps import expand_grid
+from facemotion.virtual.dense import dense_layout
+from facemotion.virtual.designs import DESIGNS
+from facemotion.virtual.talker import marker_layout
 
 min_version("9.13")  # pathvars (<results>)
 
@@ -48,29 +64,12 @@ remember_invocation(INVOCATION_DIR)
 sample_benchmarks_every(5.0)
 
 # With no --configfile the default study's config is the base; --config values override it.
-# `--config subjects=SHEET` alone runs the default settings on your sheet, one dataset per
-# subject (the default config's paper datasets only make sense for its own sheet), as the
-# study named after the sheet.
-_OWN_SHEET = (
-    "subjects" in config
-)  # a sheet from --config, a config file or a host workflow
+_OWN_SHEET = "subjects" in config  # from --config, a config file or a host workflow
 if not workflow.config_settings.configfiles:
-    _user = dict(config)
     with open(workflow.source_path("../../config/config.yaml")) as _f:
-        _base = yaml.safe_load(_f)
-    if "subjects" in _user:
-        _base["study"] = None  # named after the sheet below, unless --config study=NAME
-    if "subjects" in _user and "datasets" not in _user:
-        _base.pop("datasets", None)
-        _base["default_datasets"] = True
-    if "subjects" in _user and "lips" not in _user:
-        # your own sheet: keep the built-in virtual lip talker, not the GRID one (shared data)
-        _base["lips"]["subjects"] = {
-            k: v for k, v in _base["lips"]["subjects"].items() if v["source"] != "grid"
-        }
-    _base.update(_user)
+        _merged = merge_default_config(dict(config), yaml.safe_load(_f))
     config.clear()
-    config.update(_base)
+    config.update(_merged)
 
 # Parse-time errors (a setting, the sheet, the data's counts): one line, exit status 1.
 with exit_on_error():
@@ -99,6 +98,7 @@ with exit_on_error():
     STUDY = study_name(
         config["study"], workflow.config_settings.configfiles, SHEET, _OWN_SHEET
     )
+    config["study"] = STUDY  # the report's description names it
 
 
 # Every output of this study goes under results/<study>/ (<results> in the rules' paths), so
@@ -137,6 +137,23 @@ with exit_on_error():
         heldout_fraction=config["heldout_fraction"],
         default_per_subject=config["default_datasets"],
     )
+    # the sweep over virtual talkers: subjects V01, V02, ... and one dataset each
+    _vt = config["virtual_talkers"]
+    _talker_subjects, _talker_datasets = virtual_talkers(
+        _vt["n_talkers"],
+        _vt["design"],
+        _vt["n_sentences"],
+        config["heldout_fraction"],
+        f"{RESULTS}/virtual",
+    )
+    SUBJECTS.update(_talker_subjects)
+    DATASETS.update(_talker_datasets)
+    TALKERS = list(_talker_datasets)
+    if not DATASETS:
+        raise InputError(
+            "no datasets: set default_datasets: true, define config.datasets or "
+            "virtual_talkers"
+        )
 
 
 def _dataset_mesh_path(dataset):
@@ -154,187 +171,48 @@ def _dataset_mesh_path(dataset):
     )
 
 
-for _d in DATASETS:
-    _m = _dataset_mesh_path(_d)
-    if _m is not None and not Path(_m).is_file():
-        raise InputError(f"setting datasets.{_d}.mesh: {_m} is not a file")
+with exit_on_error():
+    for _d in DATASETS:
+        _m = _dataset_mesh_path(_d)
+        if _m is not None and not Path(_m).is_file():
+            raise InputError(f"setting datasets.{_d}.mesh: {_m} is not a file")
 
-
-def dataset_mesh(wildcards):
-    """The face mesh a dataset's maps are drawn on (setting datasets.<id>.mesh), or none."""
-    m = _dataset_mesh_path(wildcards.dataset)
-    return [str(m)] if m is not None else []
-
-
-def dataset_mesh_labels(wildcards):
-    spec = (config.get("datasets") or {}).get(wildcards.dataset) or {}
-    return spec.get("mesh_labels", "L{i:03d}")
-
-
-def dataset_recordings(wildcards):
-    return SUBJECTS[DATASETS[wildcards.dataset].subject].recordings
-
-
-def dataset_params(dataset):
-    """Everything about a dataset that its outputs depend on (declared as rule params)."""
-    ds = DATASETS[dataset]
-    subj = SUBJECTS[ds.subject]
-    return {
-        "dataset": ds.id,
-        "label": ds.label,
-        "subject": subj.id,
-        "format": subj.format,
-        "units": subj.units,
-        "head_markers": subj.head_markers,
-        "exclude_markers": subj.exclude_markers,
-        "include_markers": subj.include_markers,
-        "copy_markers": [f"{t}={s}" for t, s in subj.copy_markers],
-        "train": [i + 1 for i in ds.train],
-        "heldout": [i + 1 for i in ds.heldout],
-        "sentence_names": subj.sentence_names,
-        "subject_prefix": subj.subject_prefix,
-        "segments": (
-            None if subj.segments is None else [s.to_param() for s in subj.segments]
-        ),
-    }
-
-
-from facemotion.plots.save import figure_paths
-
-FIGURE_FORMATS = config["figures"]["formats"]
-
-
-def dataset_labels(datasets):
-    """What a rule over several datasets knows of each one alone (params.per_dataset)."""
-    return {d: {"label": DATASETS[d].label} for d in datasets}
-
-
-def fig(path):
-    """A figure's files: PNG for looking (and the report), PDF/SVG for papers if asked for
-    (setting figures.formats)."""
-    return figure_paths(path, FIGURE_FORMATS)
-
-
-def fig_more(path):
-    """A figure's files other than its PNG (the rule's `more` outputs)."""
-    return fig(path)[1:]
-
-
-def figs_more(pattern, datasets):
-    """fig_more for each dataset of a rule over several datasets, in the order of `datasets`
-    (the same number of files per dataset: run_per_dataset splits them back)."""
-    return [f for d in datasets for f in fig_more(pattern.replace("{dataset}", d))]
-
-
-def meta(path):
-    return f"{path}.meta.json"
-
-
-def all_outputs():
-    out = []
-    for d in DATASETS:
-        base = f"<results>/{d}"
-        out += [f"{base}/data/displacements.npz", f"{base}/data/gap_report.tsv"]
-        out += [f"{base}/qr/r_values.tsv", f"{base}/qr/rank.tsv"]
-        out += [f"{base}/qr/redundancy.tsv", f"{base}/qr/stability.tsv"]
-        out += [f"{base}/qr/optimality.tsv"]
-        out += [f"{base}/fit/coefficients_k{k}.tsv" for k in config["fit"]["k"]]
-    for d in EVAL_DATASETS:
-        out += [f"<results>/{d}/eval/error_curve.tsv"]
-        if config["animation"]["enabled"]:
-            out += [f"<results>/{d}/anim/heldout_still.png"]
-    out += ["<results>/tables/selected_markers.tsv", "<results>/figures/r_values.png"]
-    if EVAL_DATASETS:
-        out += ["<results>/figures/error_curves.png"]
-    for ls in config["lips"]["subjects"]:
-        out += [f"<results>/lips/{ls}/reconstruction.tsv"]
-    return out + sweep_outputs() + comparison_outputs() + ["<results>/summary.txt"]
-
-
-def final_outputs():
-    return all_outputs() + ["<results>/manifest.tsv"]
-
-
-def print_closing_summary():
-    """After a successful run (onsuccess): the summary, and how to open the report."""
-    command = same_study_command(sys.argv, "--report", f"{RESULTS}/report.html")
-    text = closing_message(RESULTS, workflow.start_time.timestamp(), command)
-    if text:
-        print(text, flush=True)
-
-
-def summary_inputs(wildcards):
-    inp = {
-        "lips": [
-            f"<results>/lips/{ls}/reconstruction.tsv"
-            for ls in config["lips"]["subjects"]
-        ]
-    }
-    if DATASETS:
-        inp["rank_summary"] = "<results>/tables/rank_summary.tsv"
-        inp["selected"] = "<results>/tables/selected_markers.tsv"
-    return inp
-
-
-def simulated_subject_params(wildcards):
-    subj = SUBJECTS[wildcards.subject]
-    return {
-        "design": subj.simulate,
-        "seed": subj.seed,
-        "talker_seed": subj.talker_seed,
-        "n_sentences": subj.n_sentences,
-        "sentence_duration": subj.sentence_duration,
-        "format": subj.format,
-        "shared_data": str(SHARED_DATA),
-    }
-
-
-def load_inputs(wildcards):
-    subj = SUBJECTS[DATASETS[wildcards.dataset].subject]
-    if subj.simulate:
-        return [f"<results>/virtual/{subj.id}"]
-    return subj.recordings + subj.segment_sources
-
-
-def lip_params(wildcards):
-    spec = dict(config["lips"]["subjects"][wildcards.lip_subject])
-    spec.pop(
-        "optional", None
-    )  # whether to skip it without the shared data: not an input
-    lips = config["lips"]
-    return {
-        "subject": spec,
-        "n_modes": lips["n_modes"],
-        "normalisation": lips["normalisation"],
-        "train_frames": lips["train_frames"],
-        "test_frames": lips["test_frames"],
-        "noise_var": lips["noise_var"],
-        "noise_var_sweep": lips["noise_var_sweep"],
-        "model_extent": lips["model_extent"],
-        "E": lips["E"],
-        "nu": lips["nu"],
-    }
-
-
+EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
+# the virtual subjects the datasets read (one simulate_subject job each)
+VIRTUAL = [
+    s
+    for s in dict.fromkeys(ds.subject for ds in DATASETS.values())
+    if SUBJECTS[s].simulate
+]
 LIP_SUBJECTS = list(config["lips"]["subjects"])  # after the skipped ones are dropped
 
 
-def lip_wc(ls):
-    """The wildcards of a job of lip subject ``ls`` alone."""
-    return SimpleNamespace(lip_subject=ls)
+def _choice(names):
+    """A wildcard that matches exactly one of ``names`` (never a folder such as tables/)."""
+    return "|".join(re.escape(n) for n in names) if names else "(?!)"
 
 
-def lip_inputs_lists(ls):
-    """A lip subject's own inputs, as lists (run_per_dataset's per-dataset inputs)."""
-    inp = lip_inputs(lip_wc(ls))
-    return {
-        # params are not paths to Snakemake: <results> resolved here
-        "tracks": [workflow.pathvars.apply(t) for t in inp["tracks"]],
-        "mesh": [inp["mesh"]] if "mesh" in inp else [],
-    }
+wildcard_constraints:
+    dataset=_choice(DATASETS),
+    subject=_choice(VIRTUAL),
+    lip_subject=_choice(LIP_SUBJECTS),
+    k=r"\d+",
+
+
+# ---- every setting against the data's marker and sentence counts (parse time) ----
+def _file_labels(subj):
+    """A subject's marker labels, known at parse time (reads one file's header)."""
+    if subj.simulate and DESIGNS[subj.simulate].dense:
+        return dense_layout(subj.simulate)
+    if subj.simulate:
+        return marker_layout(design=subj.simulate)[0]
+    return read_labels(
+        subj.recordings[0], subj.format, subject_prefix=subj.subject_prefix
+    )
 
 
 def lip_inputs(wildcards):
+    """A lip subject's tracks (and, for GRID, the face mesh its lip mesh is cut from)."""
     spec = config["lips"]["subjects"][wildcards.lip_subject]
     if spec["source"] == "grid":
         return {
@@ -347,82 +225,9 @@ def lip_inputs(wildcards):
     return {"tracks": [f"<results>/lips/{wildcards.lip_subject}/tracks.trc"]}
 
 
-# ---- virtual talkers (sweep over the generator's talker seed) ----
-from facemotion.study.sheet import Dataset, Subject, n_heldout
-
-TALKERS = []
-with exit_on_error():
-    for _i in range(config["virtual_talkers"]["n_talkers"]):
-        _sid = f"V{_i + 1:02d}"
-        _n = config["virtual_talkers"]["n_sentences"]
-        _design = config["virtual_talkers"]["design"]
-        if _design not in ("S1", "S2a", "S2b", "S"):
-            raise InputError(
-                f"setting virtual_talkers.design: unknown design {_design!r}"
-            )
-        _head = [f"H{j}" for j in range(1, 7)]
-        SUBJECTS[_sid] = Subject(
-            id=_sid,
-            recordings=[
-                f"{RESULTS}/virtual/{_sid}/{_sid}_s{j + 1:02d}.c3d" for j in range(_n)
-            ],
-            format="c3d",
-            head_markers=_head,
-            exclude_markers=_head,
-            simulate=_design,
-            seed=1000 + _i,
-            talker_seed=_i + 1,
-            n_sentences=_n,
-            # the S1 design loses marker 13 after each sentence's first frame (synth.py)
-            copy_markers=[("13", "11")] if _design == "S1" else [],
-        )
-        _held = n_heldout(_n, config["heldout_fraction"])
-        DATASETS[_sid] = Dataset(
-            _sid, _sid, _sid, list(range(_n - _held)), list(range(_n - _held, _n))
-        )
-        TALKERS.append(_sid)
-
-    if not DATASETS:
-        raise InputError(
-            "no datasets: set default_datasets: true, define config.datasets or "
-            "virtual_talkers"
-        )
-EVAL_DATASETS = [d for d, ds in DATASETS.items() if ds.heldout]
-# the datasets grouped by subject, in the sheet's order: the order load_dataset loads them in
-LOAD_ORDER = [d for s in SUBJECTS for d, ds in DATASETS.items() if ds.subject == s]
-# load_dataset's worker processes: one per subject, at most 4 (Snakemake caps them at --cores)
-LOAD_THREADS = max(1, min(4, len({DATASETS[d].subject for d in LOAD_ORDER})))
-# the virtual subjects the datasets load (simulate_subject writes them all in one job)
-VIRTUAL = [
-    s
-    for s in dict.fromkeys(DATASETS[d].subject for d in LOAD_ORDER)
-    if SUBJECTS[s].simulate
-]
-
-
-# ---- every setting against the data's marker and sentence counts (parse time) ----
-from facemotion.io.registry import read_labels
-from facemotion.study.sweeps import expand_grid
-from facemotion.virtual.dense import DENSE_DESIGNS, dense_layout
-from facemotion.virtual.talker import marker_layout
-
-
-def _file_labels(subj):
-    """A subject's marker labels, known at parse time (reads one file's header)."""
-    if subj.simulate in DENSE_DESIGNS:
-        return dense_layout(subj.simulate)
-    if subj.simulate:
-        return marker_layout(design=subj.simulate)[0]
-    return read_labels(
-        subj.recordings[0], subj.format, subject_prefix=subj.subject_prefix
-    )
-
-
 def _lip_frames(ls, spec):
     if spec["source"] == "grid":
         # the header's count (the job reads every frame)
-        from facemotion.io.trc import trc_frame_count
-
         tracks = lip_inputs(SimpleNamespace(lip_subject=ls))["tracks"]
         return sum(trc_frame_count(t) for t in tracks)
     return spec.get("frames", 150)
@@ -450,6 +255,91 @@ with exit_on_error():
         {ls: _lip_frames(ls, spec) for ls, spec in config["lips"]["subjects"].items()},
     )
 
+# Datasets whose labels are Lucero & Munhall's (Table I): the comparison reads their outputs.
+COMPARISON_DATASETS = {ds.label: d for d, ds in DATASETS.items() if ds.label in TABLE_I}
+_lip_virtual = [
+    ls for ls, spec in config["lips"]["subjects"].items() if spec["source"] == "virtual"
+]
+COMPARISON_LIP_SUBJECT = (
+    "virtual"
+    if "virtual" in _lip_virtual
+    else (_lip_virtual[0] if _lip_virtual else None)
+)
+
+
+# ---- outputs: each file with its sidecar (and a figure's other formats), by one helper ----
+FIGURE_FORMATS = config["figures"]["formats"]
+
+
+def figure(key, stem, caption=None, category=None, subcategory=None):
+    """A figure's outputs (PNG, other formats, sidecar); in the report when it has a caption."""
+    wrap = None
+    if caption is not None:
+        wrap = lambda png: report(
+            png,
+            caption=f"../report/{caption}.rst",
+            category=category,
+            subcategory=subcategory,
+        )
+    return _figure(key, stem, FIGURE_FORMATS, wrap)
+
+
+def reported_table(key, path, caption, category, subcategory=None):
+    """A table with its sidecar, shown in the report."""
+    out = table(key, path)
+    out[key] = report(
+        path,
+        caption=f"../report/{caption}.rst",
+        category=category,
+        subcategory=subcategory,
+    )
+    return out
+
+
+def data(wildcards):
+    """A dataset's displacements and its sentences table (every analysis reads both)."""
+    d = f"<results>/{wildcards.dataset}/data"
+    return {"npz": f"{d}/displacements.npz", "sentences": f"{d}/sentences.tsv"}
+
+
+def dataset_label(wildcards):
+    return DATASETS[wildcards.dataset].label
+
+
+def per_dataset(pattern, datasets):
+    """One path per dataset, in the order of ``datasets`` (an aggregation's inputs)."""
+    return [pattern.format(dataset=d) for d in datasets]
+
+
+def load_inputs(wildcards):
+    subj = SUBJECTS[DATASETS[wildcards.dataset].subject]
+    if subj.simulate:
+        return [f"<results>/virtual/{subj.id}"]
+    return subj.recordings + subj.segment_sources
+
+
+def dataset_mesh(wildcards):
+    """The face mesh a dataset's maps are drawn on (setting datasets.<id>.mesh), or none."""
+    m = _dataset_mesh_path(wildcards.dataset)
+    return [str(m)] if m is not None else []
+
+
+def dataset_mesh_labels(wildcards):
+    spec = (config.get("datasets") or {}).get(wildcards.dataset) or {}
+    return spec.get("mesh_labels", "L{i:03d}")
+
+
+def lip_params(wildcards):
+    spec = dict(config["lips"]["subjects"][wildcards.lip_subject])
+    spec.pop(
+        "optional", None
+    )  # whether to skip it without the shared data: not an input
+    lips = config["lips"]
+    return {
+        "subject": spec,
+        **{k: lips[k] for k in lips if k != "subjects"},
+    }
+
 
 def sweep_point_files(wildcards):
     """One table per dataset and point, named by the point's values (sweeps.point_name)."""
@@ -461,42 +351,13 @@ def sweep_point_files(wildcards):
     ]
 
 
-def sweep_outputs():
-    out = [f"<results>/tables/sweep_{name}.tsv" for name in SWEEPS]
-    if TALKERS:
-        out.append("<results>/tables/talkers.tsv")
-    return out
-
-
-# ---- the papers against this study (compare.smk) ----
-# Datasets whose labels are Lucero & Munhall's (Table I): the comparison reads their outputs.
-PAPER_LABELS = ("S1", "S2a", "S2b", "S2a*", "S2b*")
-COMPARISON_DATASETS = {
-    ds.label: d for d, ds in DATASETS.items() if ds.label in PAPER_LABELS
-}
-_lip_virtual = [
-    ls for ls, spec in config["lips"]["subjects"].items() if spec["source"] == "virtual"
-]
-COMPARISON_LIP_SUBJECT = (
-    "virtual"
-    if "virtual" in _lip_virtual
-    else (_lip_virtual[0] if _lip_virtual else None)
-)
-
-
-def comparison_outputs():
-    if not COMPARISON_DATASETS and COMPARISON_LIP_SUBJECT is None:
-        return []
-    return ["<results>/tables/paper_comparison.tsv"]
-
-
 def comparison_inputs(wildcards):
-    """Named inputs: the tables, then per paper dataset its R values, stability, error curve,
-    trajectory and (when k = 10 is fitted) coefficients."""
-    inp = {}
-    if DATASETS:
-        inp["selected"] = "<results>/tables/selected_markers.tsv"
-        inp["rank_summary"] = "<results>/tables/rank_summary.tsv"
+    """Named inputs: the tables across datasets, then per paper dataset its R values,
+    stability, error curve, trajectory and (when k = 10 is fitted) coefficients."""
+    inp = {
+        "selected": "<results>/tables/selected_markers.tsv",
+        "rank_summary": "<results>/tables/rank_summary.tsv",
+    }
     for label, d in COMPARISON_DATASETS.items():
         inp[f"r_values__{d}"] = f"<results>/{d}/qr/r_values.tsv"
         inp[f"stability__{d}"] = f"<results>/{d}/qr/stability.tsv"
@@ -510,3 +371,49 @@ def comparison_inputs(wildcards):
         inp["lip_reconstruction"] = f"<results>/lips/{ls}/reconstruction.tsv"
         inp["lip_counts"] = f"<results>/lips/{ls}/model_counts.tsv"
     return inp
+
+
+def summary_inputs(wildcards):
+    return {
+        "lips": [f"<results>/lips/{ls}/reconstruction.tsv" for ls in LIP_SUBJECTS],
+        "rank_summary": "<results>/tables/rank_summary.tsv",
+        "selected": "<results>/tables/selected_markers.tsv",
+    }
+
+
+def all_outputs():
+    out = []
+    for d in DATASETS:
+        base = f"<results>/{d}"
+        out += [f"{base}/data/displacements.npz", f"{base}/data/gap_report.tsv"]
+        out += [f"{base}/qr/r_values.tsv", f"{base}/qr/rank.tsv"]
+        out += [f"{base}/qr/redundancy.tsv", f"{base}/qr/stability.tsv"]
+        out += [f"{base}/qr/optimality.tsv"]
+        out += [f"{base}/fit/coefficients_k{k}.tsv" for k in config["fit"]["k"]]
+    for d in EVAL_DATASETS:
+        out += [f"<results>/{d}/eval/error_curve.tsv"]
+        if config["animation"]["enabled"]:
+            out += [f"<results>/{d}/anim/heldout_still.png"]
+    out += ["<results>/tables/selected_markers.tsv", "<results>/figures/r_values.png"]
+    if EVAL_DATASETS:
+        out += ["<results>/figures/error_curves.png"]
+    for ls in LIP_SUBJECTS:
+        out += [f"<results>/lips/{ls}/reconstruction.tsv"]
+    out += [f"<results>/tables/sweep_{name}.tsv" for name in SWEEPS]
+    if TALKERS:
+        out.append("<results>/tables/talkers.tsv")
+    if COMPARISON_DATASETS or COMPARISON_LIP_SUBJECT is not None:
+        out.append("<results>/tables/paper_comparison.tsv")
+    return out + ["<results>/summary.txt"]
+
+
+def final_outputs():
+    return all_outputs() + ["<results>/manifest.tsv"]
+
+
+def print_closing_summary():
+    """After a successful run (onsuccess): the summary, and how to open the report."""
+    command = same_study_command(sys.argv, "--report", f"{RESULTS}/report.html")
+    text = closing_message(RESULTS, workflow.start_time.timestamp(), command)
+    if text:
+        print(text, flush=True)

@@ -5,15 +5,13 @@ rule compare_with_papers:
     input:
         unpack(comparison_inputs),
     output:
-        table="<results>/tables/paper_comparison.tsv",
-        meta="<results>/tables/paper_comparison.meta.json",
-        png=report(
-            "<results>/figures/paper_comparison.png",
-            caption="../report/paper_comparison.rst",
+        **table("table", "<results>/tables/paper_comparison.tsv"),
+        **figure(
+            "png",
+            "<results>/figures/paper_comparison",
+            caption="paper_comparison",
             category="0. Summary",
         ),
-        more=fig_more("<results>/figures/paper_comparison"),
-        fig_meta="<results>/figures/paper_comparison.meta.json",
     log:
         "<results>/logs/compare_with_papers.log",
     priority: 50
@@ -26,7 +24,6 @@ rule compare_with_papers:
     params:
         datasets=COMPARISON_DATASETS,
         lip_subject=COMPARISON_LIP_SUBJECT,
-        tolerance_mm=0.5,
         r_normalisation=config["qr"]["r_normalisation"],
     message:
         "compare_with_papers: both papers' quantitative statements beside ours"

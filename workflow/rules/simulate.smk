@@ -1,31 +1,23 @@
-# Virtual subjects: the built-in default data, written as real C3D files (one per sentence).
-# One job for all virtual subjects (VIRTUAL), as load_dataset loads them all in one job; with
-# several threads, subjects are written side by side in forked worker processes.
+# Virtual subjects: the built-in default data, written as real files (one per sentence).
 
 
-if VIRTUAL:
-
-    rule simulate_subject:
-        output:
-            dirs=[directory(f"<results>/virtual/{s}") for s in VIRTUAL],
-        log:
-            "<results>/logs/simulate_subject.log",
-        benchmark:
-            "<results>/benchmarks/simulate_subject/all.tsv"
-        priority: 50
-        conda:
-            "../envs/facemotion.yaml"
-        threads: min(4, len(VIRTUAL))
-        resources:
-            mem_mb=2000 * min(4, len(VIRTUAL)),
-            runtime=10 * len(VIRTUAL),
-        params:
-            datasets=VIRTUAL,
-            per_dataset={
-                s: {"sim": simulated_subject_params(SimpleNamespace(subject=s))}
-                for s in VIRTUAL
-            },
-        message:
-            f"simulate_subject ({len(VIRTUAL)} subjects): the virtual talkers' C3D files"
-        script:
-            "../../scripts/simulate_subject.py"
+rule simulate_subject:
+    output:
+        directory("<results>/virtual/{subject}"),
+    log:
+        "<results>/logs/simulate_subject/{subject}.log",
+    benchmark:
+        "<results>/benchmarks/simulate_subject/{subject}.tsv"
+    priority: 50
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    params:
+        sim=lambda wc: simulation_params(SUBJECTS[wc.subject], SHARED_DATA),
+    message:
+        "simulate_subject {wildcards.subject}: the virtual talker's files"
+    script:
+        "../../scripts/simulate_subject.py"

@@ -1,18 +1,18 @@
-# Parameter sweeps across datasets, and the sweep over virtual talkers.
+# Parameter sweeps across datasets (one job per sweep, dataset and point), and the sweep over
+# virtual talkers.
 
 
 rule run_sweep_point:
     input:
-        npz="<results>/{dataset}/data/displacements.npz",
-        sentences="<results>/{dataset}/data/sentences.tsv",
+        unpack(data),
     output:
-        table="<results>/sweeps/{sweep}/{dataset}/{point}.tsv",
-        meta="<results>/sweeps/{sweep}/{dataset}/{point}.meta.json",
+        **table("table", "<results>/sweeps/{sweep}/{dataset}/{point}.tsv"),
     log:
         "<results>/logs/run_sweep_point/{sweep}_{dataset}_{point}.log",
     benchmark:
         "<results>/benchmarks/run_sweep_point/{sweep}_{dataset}_{point}.tsv"
     wildcard_constraints:
+        sweep=_choice(SWEEPS),
         point=r"default|[A-Za-z_]+~[^/]+",
     conda:
         "../envs/facemotion.yaml"
@@ -22,7 +22,7 @@ rule run_sweep_point:
         runtime=10,
     params:
         point=lambda wc: SWEEPS[wc.sweep]["points"][wc.point],
-        label=lambda wc: DATASETS[wc.dataset].label,
+        label=dataset_label,
         method=config["qr"]["method"],
         settle_tolerance=config["qr"]["settle_tolerance"],
         r_normalisation=config["qr"]["r_normalisation"],
@@ -36,19 +36,19 @@ rule summarise_sweep:
     input:
         sweep_point_files,
     output:
-        table="<results>/tables/sweep_{sweep}.tsv",
-        meta="<results>/tables/sweep_{sweep}.meta.json",
-        png=report(
-            "<results>/figures/sweep_{sweep}.png",
-            caption="../report/sweep.rst",
+        **table("table", "<results>/tables/sweep_{sweep}.tsv"),
+        **figure(
+            "png",
+            "<results>/figures/sweep_{sweep}",
+            caption="sweep",
             category="0. Summary",
         ),
-        more=fig_more("<results>/figures/sweep_{sweep}"),
-        fig_meta="<results>/figures/sweep_{sweep}.meta.json",
     log:
         "<results>/logs/summarise_sweep/{sweep}.log",
     benchmark:
         "<results>/benchmarks/summarise_sweep/{sweep}.tsv"
+    wildcard_constraints:
+        sweep=_choice(SWEEPS),
     conda:
         "../envs/facemotion.yaml"
     threads: 1
@@ -63,20 +63,16 @@ rule summarise_sweep:
 
 rule summarise_talkers:
     input:
-        r_values=expand("<results>/{dataset}/qr/r_values.tsv", dataset=TALKERS),
-        curves=expand("<results>/{dataset}/eval/error_curve.tsv", dataset=TALKERS),
+        r_values=per_dataset("<results>/{dataset}/qr/r_values.tsv", TALKERS),
+        curves=per_dataset("<results>/{dataset}/eval/error_curve.tsv", TALKERS),
     output:
-        table="<results>/tables/talkers.tsv",
-        meta="<results>/tables/talkers.meta.json",
-        freq="<results>/tables/talkers_top10.tsv",
-        freq_meta="<results>/tables/talkers_top10.meta.json",
-        png=report(
-            "<results>/figures/talkers.png",
-            caption="../report/talkers.rst",
+        **tables("<results>/tables", "talkers", "talkers_top10"),
+        **figure(
+            "png",
+            "<results>/figures/talkers",
+            caption="talkers",
             category="0. Summary",
         ),
-        more=fig_more("<results>/figures/talkers"),
-        fig_meta="<results>/figures/talkers.meta.json",
     log:
         "<results>/logs/summarise_talkers.log",
     benchmark:

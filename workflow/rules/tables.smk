@@ -1,13 +1,11 @@
-# The closing summary and the manifest. (Table I and Figs. 2 and 10 across datasets are drawn
-# by rank_markers and evaluate_heldout, which have every dataset's results in hand.)
+# The closing summary and the manifest.
 
 
 rule summarise_study:
     input:
         unpack(summary_inputs),
     output:
-        summary="<results>/summary.txt",
-        meta="<results>/summary.meta.json",
+        **artifact("summary", "<results>/summary.txt"),
     log:
         "<results>/logs/summarise_study.log",
     conda:
@@ -19,7 +17,7 @@ rule summarise_study:
     params:
         study=STUDY,
         root=lambda wc, output: os.path.dirname(output.summary),
-        lip_subjects=list(config["lips"]["subjects"]),
+        lip_subjects=LIP_SUBJECTS,
         skipped=SKIPPED,
     message:
         "summarise_study: the closing summary, {output.summary}"

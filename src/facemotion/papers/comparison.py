@@ -56,8 +56,7 @@ def compare(inp: Inputs) -> pd.DataFrame:
     return pd.DataFrame(R.rows, columns=COLUMNS)
 
 
-def read_inputs(paths: Mapping[str, str | None], tolerance_mm: float = 0.5,
-                lip_subject: str = "virtual") -> Inputs:
+def read_inputs(paths: Mapping[str, str | None], lip_subject: str = "virtual") -> Inputs:
     """Read the outputs named in ``paths`` (keys: 'selected', 'rank_summary', 'lip_reconstruction',
     'lip_counts', and 'r_values:LABEL', 'stability:LABEL', 'curve:LABEL', 'trajectory:LABEL',
     'coefficients:LABEL'); a missing key or file leaves that input empty."""
@@ -91,7 +90,7 @@ def read_inputs(paths: Mapping[str, str | None], tolerance_mm: float = 0.5,
         lip_reconstruction=read(paths.get("lip_reconstruction")),
         lip_counts=read(paths.get("lip_counts")),
         paths={k: str(v) for k, v in paths.items() if v},
-        tolerance_mm=tolerance_mm, lip_subject=lip_subject)
+        lip_subject=lip_subject)
 
 
 def summary_counts(table: pd.DataFrame) -> pd.DataFrame:

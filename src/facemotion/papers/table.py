@@ -77,7 +77,6 @@ class Inputs:
     lip_reconstruction: pd.DataFrame | None = None    # lips/{subject}/reconstruction.tsv
     lip_counts: pd.DataFrame | None = None            # lips/{subject}/model_counts.tsv
     paths: Mapping[str, str] | None = None            # what -> output path (for the table)
-    tolerance_mm: float = 0.5
     lip_subject: str = "virtual"
 
 

@@ -16,7 +16,12 @@ import scipy.linalg
 import scipy.linalg.lapack
 
 from facemotion.errors import InputError
-from facemotion.ranking.result import DEFAULT_R_NORMALISATION, MarkerRanking, r_scale
+from facemotion.ranking.result import (
+    ASKED,
+    DEFAULT_R_NORMALISATION,
+    MarkerRanking,
+    r_scale,
+)
 
 
 def spectral_norm(M: np.ndarray) -> float:
@@ -103,3 +108,19 @@ def epsilon_rank(ranking: MarkerRanking, tolerances_mm,
             }
         )
     return pd.DataFrame(out, columns=RANK_COLUMNS)
+
+
+def epsilon_rank_table(ranking: MarkerRanking, tolerances_mm, normalisation: str,
+                       facts: dict | None = None, extra: dict | None = None) -> pd.DataFrame:
+    """The rank table of a dataset (``rank.tsv``): :func:`epsilon_rank` at ``tolerances_mm``
+    and at each tolerance of ``extra`` (tolerance -> why) that they do not list, with where
+    each tolerance comes from (``tolerance_from``) and the ranking's ``facts`` (rows, markers,
+    route, ...) in every row, before the redundant markers."""
+    asked = [float(t) for t in tolerances_mm]
+    added = {float(t): why for t, why in (extra or {}).items()
+             if not np.any(np.isclose(asked, float(t)))}
+    table = epsilon_rank(ranking, asked + list(added), normalisation=normalisation)
+    table.insert(1, "tolerance_from", [ASKED] * len(asked) + list(added.values()))
+    for key, value in (facts or {}).items():
+        table.insert(len(table.columns) - 1, key, value)
+    return table

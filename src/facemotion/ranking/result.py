@@ -32,6 +32,8 @@ R_NORMALISATIONS = ("none", "per_coordinate", "per_frame")
 
 
 DEFAULT_R_NORMALISATION = "none"
+#: ``tolerance_from`` of an epsilon-rank at a tolerance the caller asked for (the setting).
+ASKED = "qr.tolerances_mm"
 
 
 def r_scale(rows: int, normalisation: str = DEFAULT_R_NORMALISATION) -> float:

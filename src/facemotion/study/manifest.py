@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from facemotion.errors import InputError
-from facemotion.study.provenance import SIDECAR_SUFFIX, sha256_file, sidecar_path
+from facemotion.study.outputs import SIDECAR_SUFFIX
+from facemotion.study.provenance import sha256_file, sidecar_path
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -30,9 +30,7 @@ from facemotion._version import __version__
 from facemotion.errors import InputError
 from facemotion.io.atomic import atomic_write_bytes
 from facemotion.plots.save import figure_bytes
-
-SIDECAR_SUFFIX = ".meta.json"
-
+from facemotion.study.outputs import sidecar
 
 # Output schemas: id -> (version, required columns). Tables are checked against their schema
 # before they are written, so a contract break fails loudly instead of shipping a wrong table.
@@ -46,8 +44,8 @@ TABLE_SCHEMAS: dict[str, tuple[str, tuple[str, ...]]] = {
                         "outlier_samples")),
     "r_values": ("2", ("order", "marker", "r", "r_rms", "r_rms_frame", "r_normalised",
                        "r_normalisation")),
-    "rank": ("2", ("tolerance_mm", "r_normalisation", "epsilon_rank", "r22_norm_at_rank_mm",
-                   "diagonal_count", "redundant_markers")),
+    "rank": ("3", ("tolerance_mm", "tolerance_from", "r_normalisation", "epsilon_rank",
+                   "r22_norm_at_rank_mm", "diagonal_count", "redundant_markers")),
     "redundancy": ("1", ("marker", "explained_by", "coefficient", "residual_rms_mm",
                          "start_s", "end_s")),
     "sentence_sweep": ("1", ("n_sentences", "order", "marker", "r_rms")),
@@ -157,8 +155,7 @@ class Provenance:
 
 def sidecar_path(path: str | os.PathLike) -> Path:
     """``results/x/r_values.tsv`` -> ``results/x/r_values.meta.json``."""
-    p = Path(path)
-    return p.with_name(p.stem + SIDECAR_SUFFIX)
+    return Path(sidecar(path))
 
 
 def _write_sidecar(prov: Provenance, schema_id: str, version: str, outputs: list[str]) -> Path:

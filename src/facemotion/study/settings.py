@@ -232,3 +232,39 @@ def exit_on_error() -> Iterator[None]:
     except InputError as exc:
         print(f"facemotion: {exc}", file=sys.stderr, flush=True)
         raise SystemExit(1) from None
+
+
+def merge_default_config(user: dict, default: dict) -> dict:
+    """The config of a run without ``--configfile``: the default study's, overridden by the
+    ``--config`` values in ``user``.
+
+    ``--config subjects=SHEET`` alone runs the default settings on the user's sheet, one
+    dataset per subject (the default config's paper datasets only make sense for its own
+    sheet), as the study named after the sheet, keeping the built-in virtual lip talker but not
+    the GRID one (it reads the shared data).
+    """
+    base = dict(default)
+    if "subjects" in user:
+        base["study"] = None  # named after the sheet, unless --config study=NAME
+        if "datasets" not in user:
+            base.pop("datasets", None)
+            base["default_datasets"] = True
+        if "lips" not in user:
+            lips = dict(base["lips"])
+            lips["subjects"] = {k: v for k, v in lips["subjects"].items()
+                                if v["source"] != "grid"}
+            base["lips"] = lips
+    base.update(user)
+    return base
+
+
+def limits_from_config(gaps: dict, checks: dict):
+    """The loading checks' limits from the ``gaps`` and ``checks`` settings."""
+    from facemotion.ingest.validation import Limits
+
+    return Limits(max_distance_mm=gaps["max_distance_mm"],
+                  max_speed_mm_s=gaps["max_speed_mm_s"], outliers=gaps["outliers"],
+                  min_take_frames=checks["min_take_frames"],
+                  face_spread_mm=tuple(checks["face_spread_mm"]),
+                  rate_hz=tuple(checks["rate_hz"]),
+                  max_shape_rms_mm=checks["max_shape_rms_mm"])

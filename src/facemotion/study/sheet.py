@@ -342,3 +342,67 @@ def resolve_datasets(subjects: dict[str, Subject], datasets_cfg: dict | None,
             raise InputError(f"setting {setting}.train: no training sentences")
         out[str(did)] = Dataset(str(did), str(spec.get("label", did)), sid, train, held)
     return out
+
+
+def dataset_params(subjects: dict[str, Subject], datasets: dict[str, Dataset],
+                   dataset: str) -> dict:
+    """Everything about a dataset that its outputs depend on (the loading rule's params):
+    the sheet's row of its subject and its sentences (1-based, as in the config)."""
+    ds = datasets[dataset]
+    subj = subjects[ds.subject]
+    return {
+        "dataset": ds.id,
+        "label": ds.label,
+        "subject": subj.id,
+        "format": subj.format,
+        "units": subj.units,
+        "head_markers": subj.head_markers,
+        "exclude_markers": subj.exclude_markers,
+        "include_markers": subj.include_markers,
+        "copy_markers": [f"{t}={s}" for t, s in subj.copy_markers],
+        "train": [i + 1 for i in ds.train],
+        "heldout": [i + 1 for i in ds.heldout],
+        "sentence_names": subj.sentence_names,
+        "subject_prefix": subj.subject_prefix,
+        "segments": None if subj.segments is None else [s.to_param() for s in subj.segments],
+    }
+
+
+def simulation_params(subject: Subject, shared_data: str | Path) -> dict:
+    """What a virtual subject's files depend on (the simulating rule's params)."""
+    return {
+        "design": subject.simulate,
+        "seed": subject.seed,
+        "talker_seed": subject.talker_seed,
+        "n_sentences": subject.n_sentences,
+        "sentence_duration": subject.sentence_duration,
+        "format": subject.format,
+        "shared_data": str(shared_data),
+    }
+
+
+def virtual_talkers(n_talkers: int, design: str, n_sentences: int, heldout_fraction: float,
+                    virtual_dir: str | Path) -> tuple[dict[str, Subject], dict[str, Dataset]]:
+    """The sweep over virtual talkers (setting ``virtual_talkers``): subjects V01, V02, ...
+    of one design, each its own talker (talker seed 1, 2, ...), one dataset each with the
+    last ``heldout_fraction`` of its sentences held out."""
+    from facemotion.virtual.designs import HEAD_LABELS, get_design
+
+    spec = get_design(design, "setting virtual_talkers.design")
+    if spec.dense:
+        raise InputError(f"setting virtual_talkers.design: {design!r} is a dense design; "
+                         "the talker sweep uses the 57-marker talker's designs")
+    subjects, datasets = {}, {}
+    for i in range(n_talkers):
+        sid = f"V{i + 1:02d}"
+        subjects[sid] = Subject(
+            id=sid,
+            recordings=[str(Path(virtual_dir) / sid / f"{sid}_s{j + 1:02d}.c3d")
+                        for j in range(n_sentences)],
+            format="c3d", head_markers=list(HEAD_LABELS), exclude_markers=list(HEAD_LABELS),
+            simulate=design, seed=1000 + i, talker_seed=i + 1, n_sentences=n_sentences,
+            copy_markers=list(spec.copy_markers))
+        held = n_heldout(n_sentences, heldout_fraction)
+        datasets[sid] = Dataset(sid, sid, sid, list(range(n_sentences - held)),
+                                list(range(n_sentences - held, n_sentences)))
+    return subjects, datasets

@@ -1,10 +1,9 @@
 """Lip meshes: the parametric generator, the canonical MediaPipe lip band, validation, OBJ."""
 
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import SHARED_DATA
 
 from facemotion.errors import InputError
 from facemotion.io.obj import read_obj
@@ -21,8 +20,7 @@ from facemotion.lips.mesh import (
     unit_scale,
 )
 
-DATA = Path(os.environ.get("FACEMOTION_SHARED_DATA",
-                           Path(__file__).resolve().parents[2] / "shared" / "data"))
+DATA = SHARED_DATA
 OBJ = DATA / "mesh" / "canonical_face_model.obj"
 
 

@@ -2,12 +2,11 @@
 units checked by the spread of the face; take length; the sheet's units never override the
 file's. References: planted ground truth, and the real recordings in ../shared/data."""
 
-import os
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import SHARED_DATA
 
 from facemotion.errors import InputError
 from facemotion.ingest.validation import (
@@ -22,8 +21,7 @@ from facemotion.io.recording import Recording
 from facemotion.io.registry import read_recording
 from facemotion.io.wide_csv import write_csv
 
-ROOT = Path(os.environ.get("FACEMOTION_SHARED_DATA",
-                           Path(__file__).resolve().parents[2] / "shared" / "data"))
+ROOT = SHARED_DATA
 REAL = sorted(ROOT.glob("animface/*.c3d")) + sorted(ROOT.glob("grid/*.trc"))
 
 

@@ -10,12 +10,12 @@ kineticstoolkit's test suite); ktk_* files from kineticstoolkit (Apache-2.0), FÃ
 from __future__ import annotations
 
 import logging
-import os
 from pathlib import Path
 
 import ezc3d
 import numpy as np
 import pytest
+from helpers import SHARED_DATA
 
 from facemotion.errors import InputError
 from facemotion.io.c3d import read_c3d, write_c3d
@@ -30,8 +30,7 @@ SUITE_FILES = {
 
 
 def suite() -> Path:
-    env = os.environ.get("FACEMOTION_SHARED_DATA")
-    root = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    root = SHARED_DATA
     d = root / "c3d_suite"
     if not all((d / f).is_file() for f in SUITE_FILES):
         pytest.fail(f"C3D suite not found at {d}; set FACEMOTION_SHARED_DATA to the shared "

@@ -8,15 +8,14 @@ import os
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from helpers import REPO, SHARED_DATA
 
 from facemotion.errors import InputError
 from facemotion.study.invocation import ENV, invocation_dir, resolve_path, same_study_command
 from facemotion.study.summary import study_name
 
-REPO = Path(__file__).resolve().parents[1]
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 
 
@@ -179,10 +178,8 @@ def test_fresh_clone_without_shared_folder_dry_runs(tmp_path):
 def test_every_shipped_config_dry_runs_with_the_shared_data(tmp_path, name):
     """Each config file of the repository parses and plans (its paths resolve, e.g. the GRID
     datasets' face mesh in the shared data)."""
-    shared = Path(os.environ.get("FACEMOTION_SHARED_DATA")
-                  or REPO.parent / "shared" / "data")
-    if not shared.is_dir():
-        pytest.skip(f"no shared data at {shared} (set FACEMOTION_SHARED_DATA)")
+    shared = SHARED_DATA
+    assert shared.is_dir(), f"no shared data at {shared} (set FACEMOTION_SHARED_DATA)"
     proc = _snakemake("-s", str(REPO / "Snakefile"), "--directory", str(tmp_path / "wd"), "-n",
                       "--configfile", str(REPO / "config" / f"{name}.yaml"),
                       "--config", f"shared_data={shared}", cwd=tmp_path)

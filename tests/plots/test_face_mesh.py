@@ -1,15 +1,14 @@
 """Face mesh: reading, placement on a talker against a planted transform, maps drawn on it."""
 
-import os
 
 import matplotlib
 
 matplotlib.use("Agg")
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
+from helpers import SHARED_DATA
 from matplotlib.collections import TriMesh  # noqa: E402
 from scipy.spatial import Delaunay  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
@@ -25,9 +24,7 @@ from facemotion.plots.face_mesh import (
 from facemotion.plots.facemap import mesh_values  # noqa: E402
 from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps  # noqa: E402
 
-# the shared data beside the repository, as in test_real_data (FACEMOTION_SHARED_DATA elsewhere)
-SHARED = Path(os.environ.get("FACEMOTION_SHARED_DATA")
-              or Path(__file__).resolve().parents[1].parent / "shared" / "data")
+SHARED = SHARED_DATA
 
 
 def dome(n_side=9):

@@ -2,11 +2,11 @@
 
 import importlib
 import io
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import SHARED_DATA
 from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
@@ -25,8 +25,7 @@ from facemotion.lips.pipeline import (
 from facemotion.lips.virtual import DEPTH_SHARE_TARGET, depth_share, make_virtual_talker
 from facemotion.plots.lips import plot_mesh, plot_modes
 
-DATA = Path(os.environ.get("FACEMOTION_SHARED_DATA",
-                           Path(__file__).resolve().parents[2] / "shared" / "data"))
+DATA = SHARED_DATA
 
 
 def _read_trc(path: Path) -> Recording:

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from helpers import SHARED_DATA
 
 from facemotion.errors import InputError
 from facemotion.ingest.gaps import REPORT_COLUMNS, fill_gaps, gap_report
@@ -163,13 +164,10 @@ def test_bad_settings():
 
 def dense_face(frames, rate=30.0, seed=0, n_sources=12, noise=0.05):
     """The canonical mesh's 468 vertices (mm) moved by smooth Gaussian-bump fields + noise."""
-    import os
-    from pathlib import Path
 
     from facemotion.io.obj import read_obj
 
-    data = Path(os.environ.get("FACEMOTION_SHARED_DATA",
-                               Path(__file__).resolve().parents[2] / "shared" / "data"))
+    data = SHARED_DATA
     v = 10.0 * read_obj(data / "mesh" / "canonical_face_model.obj")[0]
     rng = np.random.default_rng(seed)
     c = v[rng.integers(0, len(v), n_sources)]

@@ -1,11 +1,10 @@
 """Readers and writers: round trips, independent files (raw ezc3d, hand-written text), errors."""
 
-import os
-from pathlib import Path
 
 import ezc3d
 import numpy as np
 import pytest
+from helpers import SHARED_DATA
 
 from facemotion.errors import InputError
 from facemotion.io.c3d import read_c3d, write_c3d
@@ -195,8 +194,7 @@ def test_trc_frame_count_from_the_header_is_the_readers_count(tmp_path):
     """The parse-time count (header only) equals the frames read, on GRID's TRCs and a
     hand-written file; a header that lies about NumFrames is refused by the reader."""
     (tmp_path / "hand.trc").write_text(HAND_TRC)
-    shared = Path(os.environ.get("FACEMOTION_SHARED_DATA",
-                                 Path(__file__).resolve().parents[2] / "shared" / "data"))
+    shared = SHARED_DATA
     files = [tmp_path / "hand.trc", *sorted((shared / "grid").glob("*.trc"))[:2]]
     assert len(files) == 3
     for f in files:
@@ -291,12 +289,10 @@ def test_directory_is_not_a_recording(tmp_path):
 def test_c3d_layout_matches_ezc3d_on_real_files():
     """The header/parameter parse against ezc3d's, on every C3D variant of the shared data
     (Intel and DEC, integer and float storage, analog channels, first frame > 1)."""
-    from pathlib import Path
 
     from facemotion.io.c3d import c3d_layout
 
-    root = Path(os.environ.get("FACEMOTION_SHARED_DATA",
-                               Path(__file__).resolve().parents[2] / "shared" / "data"))
+    root = SHARED_DATA
     files = sorted(root.glob("*/*.c3d"))
     assert len(files) >= 8
     for f in files:
@@ -318,12 +314,10 @@ def test_c3d_layout_matches_ezc3d_on_real_files():
                                   "c3d_suite/ktk_tennis_serve_2players.c3d"])
 @pytest.mark.parametrize("cut", [1, 700, 5000])
 def test_truncated_c3d_is_an_error(tmp_path, name, cut):
-    from pathlib import Path
 
     from facemotion.io.c3d import c3d_layout
 
-    root = Path(os.environ.get("FACEMOTION_SHARED_DATA",
-                               Path(__file__).resolve().parents[2] / "shared" / "data"))
+    root = SHARED_DATA
     raw = (root / name).read_bytes()
     padding = len(raw) - c3d_layout(root / name).size
     (tmp_path / "cut.c3d").write_bytes(raw[:-cut])

@@ -2,17 +2,14 @@
 its TRC files, the GRID all-landmark datasets), and a k_max beyond a dataset's markers is
 refused at parse time (one line, never clamped)."""
 
-import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from helpers import REPO, SHARED_DATA
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("FACEMOTION_SHARED_DATA", REPO.parent / "shared" / "data"))
-pytestmark = [pytest.mark.workflow,
-              pytest.mark.skipif(not (SHARED / "grid").is_dir(), reason="no shared data")]
+SHARED = SHARED_DATA
+pytestmark = pytest.mark.workflow
 
 
 def dry_run(tmp_path, config, extra=None):

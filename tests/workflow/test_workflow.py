@@ -8,6 +8,7 @@ tiny lip model) and compares every output's checksum between the two runs.
 import hashlib
 import json
 import os
+import re
 import subprocess
 import sys
 import zipfile
@@ -15,8 +16,8 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from helpers import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 pytestmark = pytest.mark.workflow
 
@@ -83,12 +84,12 @@ def test_outputs_exist_with_sidecars(smoke_runs):
         assert 'src="data:video/mp4;base64,' in page
     table = pd.read_csv(res / "tables" / "selected_markers.tsv", sep="\t", dtype=str)
     assert list(table.columns) == ["order", "S1", "S2a"]
-    # tables and figures across datasets, drawn by the rule over all datasets: each one's
-    # sidecar names the per-dataset tables it was made from, written by the same job
+    # tables and figures across datasets, drawn by aggregation rules: each one's sidecar
+    # names the per-dataset tables it was made from
     for rel, step, inputs in (
-            ("figures/error_curves", "evaluate_heldout", ["eval/error_curve.tsv"]),
-            ("tables/selected_markers", "rank_markers", ["qr/r_values.tsv", "qr/rank.tsv"]),
-            ("figures/r_values", "rank_markers", ["qr/r_values.tsv", "qr/rank.tsv"])):
+            ("figures/error_curves", "summarise_heldout", ["eval/error_curve.tsv"]),
+            ("tables/selected_markers", "summarise_ranking", ["qr/r_values.tsv", "qr/rank.tsv"]),
+            ("figures/r_values", "summarise_ranking", ["qr/r_values.tsv", "qr/rank.tsv"])):
         meta = json.loads((res / f"{rel}.meta.json").read_text())
         assert meta["step"] == step, rel
         assert sorted(i["path"] for i in meta["inputs"]) == sorted(
@@ -158,19 +159,19 @@ GATHER = {"summarise_study", "write_manifest", "all", "compare_with_papers"}
 
 
 @pytest.mark.parametrize("setting, reruns", [
-    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers"}),
-    ("qr:\n  table_orders: 5\n", {"rank_markers"}),
+    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers", "summarise_ranking"}),
+    ("qr:\n  table_orders: 5\n", {"summarise_ranking"}),
     ("qr:\n  noise_mm: 0.3\n", {"find_redundant_markers"}),
     ("qr:\n  optimality_k_max: 2\n", {"compare_subsets"}),
     ("qr:\n  replicates: 10\n", {"sweep_sentences"}),
-    ("eval:\n  trajectory_k: 3\n", {"evaluate_heldout"}),
+    ("eval:\n  trajectory_k: 3\n", {"evaluate_heldout", "summarise_heldout"}),
     ("fit:\n  grid_n: 30\n", {"fit_regions"}),
     ("animation:\n  grid_n: 12\n", {"animate_heldout"}),
     ("gaps:\n  max_interp_s: 0.2\n", None),  # the data: everything after loading
 ])
 def test_a_changed_setting_reruns_exactly_what_reads_it(smoke_runs, setting, reruns):
-    """Jobs over several datasets keep Snakemake's change detection per setting: a setting
-    reruns the jobs that read it (and the rules that gather every output), nothing else."""
+    """A setting reruns the jobs that read it, the aggregations of their outputs and the
+    rules that gather every output, nothing else."""
     a, _ = smoke_runs
     got = dry_run_rules(run_snakemake(a, "-n", extra_config=setting)) - GATHER
     if reruns is None:
@@ -180,15 +181,92 @@ def test_a_changed_setting_reruns_exactly_what_reads_it(smoke_runs, setting, rer
         assert got == reruns
 
 
-def test_report_builds_with_expected_entries(smoke_runs):
+def dry_run_jobs(proc) -> list[tuple[str, str]]:
+    """(rule, message) of each job a dry run lists ("Job N: <message>" lines)."""
+    text = proc.stdout + proc.stderr
+    return [(m.split()[0].rstrip(":"), m) for m in re.findall(r"^Job \d+: (.+)$", text, re.M)]
+
+
+# the aggregations: tables and figures across datasets, the comparison, summary and manifest
+AGGREGATIONS = GATHER | {"summarise_ranking", "summarise_heldout"}
+
+
+def test_a_new_subject_runs_only_its_own_jobs_and_the_aggregations(smoke_runs, tmp_path):
+    """The smoke study's two subjects are complete; a sheet with a third subject plans the
+    third subject's jobs, one per rule, and the aggregations, never a job of the first two."""
+    a, _ = smoke_runs
+    sheet = (REPO / "config" / "smoke_subjects.tsv").read_text().rstrip("\n").split("\n")
+    new = sheet[-1].split("\t")
+    new[0], new[6], new[7] = "S2b", "S2b", "3"  # subject, simulate, seed
+    (tmp_path / "three.tsv").write_text("\n".join([*sheet, "\t".join(new)]) + "\n")
+    proc = run_snakemake(a, "-n", "--config", f"subjects={tmp_path / 'three.tsv'}")
+    jobs = dry_run_jobs(proc)
+    own = [(rule, msg) for rule, msg in jobs if rule not in AGGREGATIONS]
+    assert own and all(msg.split()[1].startswith("S2b") for _, msg in own), own
+    per_rule = {}
+    for rule, _ in own:
+        per_rule[rule] = per_rule.get(rule, 0) + 1
+    assert per_rule == dict.fromkeys(
+        ["simulate_subject", "load_dataset", "rank_markers", "find_redundant_markers",
+         "sweep_sentences", "compare_subsets", "fit_regions", "evaluate_heldout",
+         "animate_heldout"], 1), per_rule
+    assert {rule for rule, _ in jobs} & AGGREGATIONS == AGGREGATIONS
+
+
+def report_entries(html: str) -> dict:
+    """The report's entries (path -> caption, job properties) from its report.html."""
+    start = html.index("var results = ", html.index("<script id=\"results\">")) + len(
+        "var results = ")
+    return json.JSONDecoder().raw_decode(html[start:])[0]
+
+
+def caption_problems(path: str, entry: dict, root: Path) -> list[str]:
+    """What is wrong with a report entry's rendered caption: a docutils message, an empty
+    field, a dataset (lip subject, sweep) it does not name, a results/ path that does not
+    exist under ``root``."""
+    caption = entry["caption"]
+    problems = [] if caption.strip() else [f"{path}: empty caption"]
+    for bad in ("System Message", "system-message", "problematic", "<strong></strong>",
+                '<tt class="docutils literal"></tt>', "``"):
+        if bad in caption:
+            problems.append(f"{path}: {bad!r} in the caption")
+    wildcards = dict(w.split("=", 1) for w in
+                     filter(None, (entry["job_properties"]["wildcards"] or "").split(", ")))
+    for key in ("dataset", "lip_subject", "sweep"):
+        if key in wildcards and f"<strong>{wildcards[key]}</strong>" not in caption:
+            problems.append(f"{path}: the caption does not name {key} {wildcards[key]}")
+    for named in re.findall(r"results/[^\s<\"&]+", caption):
+        if not (root / named).exists():
+            problems.append(f"{path}: {named} does not exist")
+    return problems
+
+
+def test_report_captions_render_and_name_their_dataset(smoke_runs):
+    """Every caption renders without a docutils message or an empty field; a per-dataset (or
+    per-lip-subject, per-sweep) entry's caption names its own; every results/ path a caption
+    names exists. The same check finds the faults of a caption without its wildcard."""
     a, _ = smoke_runs
     run_snakemake(a, "--report", "results/smoke/report.zip")
-    names = zipfile.ZipFile(a / "results" / "smoke" / "report.zip").namelist()
+    zf = zipfile.ZipFile(a / "results" / "smoke" / "report.zip")
+    names = zf.namelist()
     for expected in ("r_values.png", "sentence_sweep_plot.png", "regions_k4.png",
                      "error_curve_plot.png", "mesh.png", "reconstruction.tsv",
                      "heldout_page.html", "heldout_still.png",
                      "paper_comparison.png"):
         assert any(n.endswith(expected) for n in names), expected
+    html = zf.read(next(n for n in names if n.endswith("report.html"))).decode()
+    entries = report_entries(html)
+    assert len(entries) >= 25  # 11 per dataset (2), the lip model and the summaries
+    problems = [p for path, e in entries.items() for p in caption_problems(path, e, a)]
+    assert not problems, problems
+    assert "System Message" not in html and "results/smoke/manifest.tsv" in html
+    # a caption rendered without its wildcard (the fault of every per-dataset caption when
+    # one job ran over all datasets), and a path that does not exist
+    broken = {"caption": 'for dataset <tt class="docutils literal"></tt> '
+                         "(results/tables/none.tsv)",
+              "job_properties": {"wildcards": "dataset=S1"}}
+    found = caption_problems("x", broken, a)
+    assert len(found) == 3, found
 
 
 def test_bad_config_value_is_rejected_at_parse_time(tmp_path):

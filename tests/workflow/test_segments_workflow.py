@@ -14,6 +14,7 @@ import ezc3d
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import REPO
 from praatio import textgrid
 from praatio.utilities.constants import Interval
 
@@ -21,7 +22,6 @@ from facemotion.io.c3d import read_c3d, write_c3d
 from facemotion.io.recording import Recording
 
 pytestmark = pytest.mark.workflow
-REPO = Path(__file__).resolve().parents[1]
 HEAD = "H1,H2,H3,H4,H5,H6"
 DATASETS = ("split", "events", "textgrid")
 

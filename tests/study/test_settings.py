@@ -2,10 +2,10 @@
 
 import copy
 import re
-from pathlib import Path
 
 import pytest
 import yaml
+from helpers import SCHEMAS
 
 from facemotion.errors import InputError
 from facemotion.study.settings import (
@@ -17,7 +17,7 @@ from facemotion.study.settings import (
 )
 from facemotion.study.sheet import n_heldout
 
-SCHEMA = Path(__file__).resolve().parents[1] / "workflow" / "schemas" / "config.schema.yaml"
+SCHEMA = SCHEMAS / "config.schema.yaml"
 
 
 @pytest.fixture()
@@ -126,7 +126,7 @@ def test_nan_and_infinity_in_any_setting_are_errors(tmp_path):
     refused before the schema: a NaN tolerance would otherwise give an epsilon-rank."""
     from facemotion.study.settings import validate_config
 
-    schema = Path(__file__).resolve().parents[1] / "workflow" / "schemas" / "config.schema.yaml"
+    schema = SCHEMAS / "config.schema.yaml"
     for config, where in (({"qr": {"tolerances_mm": [0.5, float("nan")]}}, "qr.tolerances_mm.1"),
                           ({"heldout_fraction": float("inf")}, "heldout_fraction")):
         with pytest.raises(InputError, match=rf"^setting {re.escape(where)}: (nan|inf) is not a "

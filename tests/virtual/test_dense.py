@@ -2,11 +2,10 @@
 lip sides, and the subdivision to 5,023 vertices, against invariants computed independently
 (areas, orientation, midpoints, the Euler characteristic) and the mesh file itself."""
 
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import SHARED_DATA
 from scipy.spatial.transform import Rotation
 
 from facemotion.errors import InputError
@@ -24,8 +23,7 @@ from facemotion.virtual.dense import (
 )
 from facemotion.virtual.talker import make_talker
 
-SHARED = Path(os.environ.get("FACEMOTION_SHARED_DATA",
-                             Path(__file__).resolve().parents[2] / "shared" / "data"))
+SHARED = SHARED_DATA
 MESH = SHARED / CANONICAL_MESH
 
 
