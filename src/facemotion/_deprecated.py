@@ -44,7 +44,7 @@ OLD_PATHS: dict[str, tuple[str, ...]] = {
     "pivoted_qr": ("ranking.routes", "ranking.result", "ranking.qr", "ranking.epsilon_rank"),
     "plots.errors": ("plots.error_curves",),
     "prediction": ("regions.prediction",),
-    "provenance": ("study.provenance", "io.atomic", "io.npz", "plots.save"),
+    "provenance": ("study.provenance", "io.atomic", "io.npz", "plots.save", "study.outputs"),
     "randomized_selection": ("ranking.randomized",),
     "readers": ("io.registry", "io.base", "io.c3d", "io.trc", "io.wide_csv"),
     "recording": ("io.recording",),

@@ -155,16 +155,18 @@ def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, me
     (r = |r_kk| in mm, and its normalised readings) and, for each tolerance, the epsilon-rank
     (the smallest k with ||R22||_2 <= tolerance) beside the count of |r_kk| above it.
     """
-    import facemotion as fm
+    from facemotion.ingest.loading import load
+    from facemotion.ranking.epsilon_rank import epsilon_rank
+    from facemotion.ranking.routes import rank_markers
 
     options = {k: v for k, v in (("units", units), ("max_interp_s", max_interp_s),
                                  ("long_gaps", long_gaps), ("neutral", neutral))
                if v is not None}
-    data = fm.load(list(files), fmt=fmt, head_markers=head, exclude_markers=exclude,
-                   include_markers=include, **options)
+    data = load(list(files), fmt=fmt, head_markers=head, exclude_markers=exclude,
+                include_markers=include, **options)
     _echo_filled(data.gap_report)
     train = data.train
-    ranking = fm.rank_markers(train, method=method)
+    ranking = rank_markers(train, method=method)
     rows, n = train.A.shape
     click.echo(f"A: {rows} rows ({rows // 3} frames) x {n} markers from {len(files)} take(s)")
     click.echo(f"first pivots: {', '.join(ranking.labels_in_order[:n_first])}")
@@ -172,8 +174,8 @@ def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, me
     click.echo(ranking.to_frame(r_normalisation).to_string(
         index=False, float_format=lambda x: f"{x:.6g}"))
     click.echo("")
-    table = fm.epsilon_rank(ranking, list(tolerances) or list(DEFAULT_TOLERANCES_MM),
-                            normalisation=r_normalisation)
+    table = epsilon_rank(ranking, list(tolerances) or list(DEFAULT_TOLERANCES_MM),
+                         normalisation=r_normalisation)
     # the redundant markers are the pivots after the epsilon-rank, in the order printed above
     click.echo(table.drop(columns=["redundant_markers"], errors="ignore").to_string(index=False))
 

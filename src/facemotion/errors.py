@@ -1,4 +1,5 @@
-"""Errors raised on bad input: each message names the file, marker or setting at fault."""
+"""Errors raised on bad input: each message names the file, marker, argument or setting at
+fault."""
 
 TOKEN_CHARS = 16
 

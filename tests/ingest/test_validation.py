@@ -97,7 +97,8 @@ def test_outliers_error_mode_names_marker_and_frame(jaw):
     rec, _ = planted(jaw, [(50, 2)], [jaw.points[50, 2] + [0, 0, 800.0]])
     with pytest.raises(InputError, match=rf"planted: marker '{jaw.labels[2]}': 1 outlier "
                        r"sample\(s\).*frame 51 \(t = 0\.833 s\): 1 at up to 7\d\d mm from the "
-                       r"face centre \(limit 250 mm.*gaps\.outliers is .error."):
+                       r"face centre \(limit 250 mm, limits\.max_distance_mm\).*"
+                       r"\(limits\.outliers is .error.\)"):
         check_take(rec, Limits(outliers="error"))
     clean, found = check_take(rec, Limits())
     assert np.isnan(clean.points[50, 2]).all() and found.outliers.sum() == 1
@@ -137,18 +138,20 @@ def test_right_units_pass_and_the_file_wins_over_the_sheet(tmp_path, jaw):
 def test_short_take(jaw):
     one = Recording(jaw.labels, jaw.points[:1], jaw.rate, source="one.c3d")
     with pytest.raises(InputError, match=r"one\.c3d: heldout take has 1 frame\(s\), fewer than "
-                       r"the minimum 10 \(setting checks\.min_take_frames\)"):
+                       r"the minimum 10 \(limits\.min_take_frames\)"):
         check_take(one, Limits(), role="heldout")
     check_take(Recording(jaw.labels, jaw.points[:10], jaw.rate), Limits())
 
 
-def test_bad_limits_name_the_setting():
-    with pytest.raises(InputError, match="gaps.outliers"):
+def test_bad_limits_name_the_argument_or_the_name_given():
+    with pytest.raises(InputError, match=r"^limits\.outliers: must be one of gaps, error"):
         Limits(outliers="drop")
-    with pytest.raises(InputError, match="checks.face_spread_mm"):
+    with pytest.raises(InputError, match=r"^limits\.face_spread_mm: need 0 < low < high"):
         Limits(face_spread_mm=(300, 10))
-    with pytest.raises(InputError, match="gaps.max_speed_mm_s"):
+    with pytest.raises(InputError, match=r"^limits\.max_speed_mm_s: must be positive"):
         Limits(max_speed_mm_s=0)
+    with pytest.raises(InputError, match=r"^setting gaps\.max_speed_mm_s: must be positive"):
+        Limits(max_speed_mm_s=0, names={"max_speed_mm_s": "setting gaps.max_speed_mm_s"})
 
 
 def test_nanmedian_over_markers_equals_numpys():
@@ -216,7 +219,7 @@ def test_same_face_across_takes(jaw):
     order = np.random.default_rng(0).permutation(jaw.n_markers)
     shuffled = Recording(jaw.labels, jaw.points[:, order], jaw.rate, source="shuffled.c3d")
     with pytest.raises(InputError, match=r"shuffled\.c3d: the face differs from w0's by "
-                       r"\d+.* mm RMS.*checks\.max_shape_rms_mm"):
+                       r"\d+.* mm RMS.*limits\.max_shape_rms_mm"):
         check_same_shape([windows[0], shuffled], Limits())
 
 

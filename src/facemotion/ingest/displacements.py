@@ -176,7 +176,7 @@ def build_displacements(recordings: list[Recording] | Recording,
     labels (same order) and rate and have no NaN left (fill gaps first).
     """
     if neutral not in NEUTRAL_MODES:
-        raise InputError(f"neutral setting must be one of {', '.join(NEUTRAL_MODES)}, "
+        raise InputError(f"neutral: must be one of {', '.join(NEUTRAL_MODES)}, "
                          f"got {neutral!r}")
     recordings = [recordings] if isinstance(recordings, Recording) else list(recordings)
     if names is None:

@@ -242,18 +242,18 @@ def fill_gaps(rec: Recording, max_interp_s: float = 0.1, long_gaps: str = "pca",
 
     src = rec.source or "recording"
     if long_gaps not in LONG_GAP_METHODS:
-        raise InputError(f"{src}: long_gaps setting must be one of {', '.join(LONG_GAP_METHODS)}"
+        raise InputError(f"long_gaps: must be one of {', '.join(LONG_GAP_METHODS)}"
                          f", got {long_gaps!r}")
     if isinstance(n_donors, bool) or not isinstance(n_donors, int | np.integer) or n_donors < 1:
-        raise InputError(f"{src}: n_donors setting must be an integer >= 1, got {n_donors!r}")
+        raise InputError(f"n_donors: must be an integer >= 1, got {n_donors!r}")
     if not np.isfinite(max_interp_s) or max_interp_s < 0:
-        raise InputError(f"{src}: max_interp_s setting must be >= 0 s, got {max_interp_s!r}")
+        raise InputError(f"max_interp_s: must be >= 0 s, got {max_interp_s!r}")
     max_frames = int(round(max_interp_s * rec.rate))
     miss = missing_mask(rec)
     never = [rec.labels[j] for j in np.flatnonzero(miss.all(axis=0))]
     if never and rec.n_frames:
         raise InputError(f"{src}: marker(s) {', '.join(never)} missing in every frame; exclude "
-                         "them in the settings or fix the recording")
+                         "them (exclude_markers) or fix the recording")
     pts = rec.points.copy()
     pts[miss] = np.nan  # a partly missing sample counts as missing in all three coordinates
     F = rec.n_frames

@@ -101,8 +101,8 @@ def _resolve(template: str, take: str, sheet_dir: Path, shared_data) -> Path:
     text = template.replace("{stem}", Path(take).stem)
     if "{shared_data}" in text:
         if shared_data is None:
-            raise InputError(f"segments path {template!r} uses {{shared_data}} but the setting "
-                             "'shared_data' is not set")
+            raise InputError(f"shared_data: the segments path {template!r} uses "
+                             "{shared_data}, and no shared_data folder is given")
         text = text.replace("{shared_data}", str(shared_data))
     p = Path(text)
     return p if p.is_absolute() else sheet_dir / p

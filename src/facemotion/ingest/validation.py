@@ -39,7 +39,8 @@ from __future__ import annotations
 
 import logging
 import warnings
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -56,7 +57,11 @@ MAX_OUTLIER_FRACTION = 0.5  # a take more than half outliers would be reconstruc
 
 @dataclass(frozen=True)
 class Limits:
-    """The plausibility limits (settings ``gaps.*`` and ``checks.*``; defaults in the README)."""
+    """The plausibility limits (settings ``gaps.*`` and ``checks.*``; defaults in the README).
+
+    ``names``: what a message calls each limit, by field. By default the argument
+    (``limits.face_spread_mm``); the study passes its settings (``setting checks.face_spread_mm``).
+    """
 
     max_distance_mm: float = 250.0
     max_speed_mm_s: float = 1000.0
@@ -65,30 +70,34 @@ class Limits:
     face_spread_mm: tuple[float, float] = (10.0, 300.0)
     rate_hz: tuple[float, float] = (10.0, 2000.0)
     max_shape_rms_mm: float = 20.0
+    names: Mapping[str, str] = field(default_factory=dict, compare=False, repr=False)
+
+    def name(self, limit: str) -> str:
+        return self.names.get(limit, f"limits.{limit}")
 
     def __post_init__(self) -> None:
         if self.outliers not in OUTLIER_MODES:
-            raise InputError(f"setting gaps.outliers: must be one of {', '.join(OUTLIER_MODES)}"
+            raise InputError(f"{self.name('outliers')}: must be one of {', '.join(OUTLIER_MODES)}"
                              f", got {self.outliers!r}")
         if not (np.isfinite(self.max_distance_mm) and self.max_distance_mm > 0):
-            raise InputError(f"setting gaps.max_distance_mm: must be positive, got "
+            raise InputError(f"{self.name('max_distance_mm')}: must be positive, got "
                              f"{self.max_distance_mm!r}")
         if not (np.isfinite(self.max_speed_mm_s) and self.max_speed_mm_s > 0):
-            raise InputError(f"setting gaps.max_speed_mm_s: must be positive, got "
+            raise InputError(f"{self.name('max_speed_mm_s')}: must be positive, got "
                              f"{self.max_speed_mm_s!r}")
         lo, hi = self.face_spread_mm
         if not 0 < lo < hi:
-            raise InputError(f"setting checks.face_spread_mm: need 0 < low < high, got "
+            raise InputError(f"{self.name('face_spread_mm')}: need 0 < low < high, got "
                              f"{list(self.face_spread_mm)}")
         lo, hi = self.rate_hz
         if not 0 < lo < hi:
-            raise InputError(f"setting checks.rate_hz: need 0 < low < high, got "
+            raise InputError(f"{self.name('rate_hz')}: need 0 < low < high, got "
                              f"{list(self.rate_hz)}")
         if not (np.isfinite(self.max_shape_rms_mm) and self.max_shape_rms_mm > 0):
-            raise InputError(f"setting checks.max_shape_rms_mm: must be positive, got "
+            raise InputError(f"{self.name('max_shape_rms_mm')}: must be positive, got "
                              f"{self.max_shape_rms_mm!r}")
         if int(self.min_take_frames) < 2:
-            raise InputError(f"setting checks.min_take_frames: must be at least 2, got "
+            raise InputError(f"{self.name('min_take_frames')}: must be at least 2, got "
                              f"{self.min_take_frames!r}")
 
 
@@ -198,7 +207,7 @@ def check_face_spread(rec: Recording, limits: Limits,
         raise InputError(
             f"{where}: the markers lie a median {spread:.3g} mm from their centre when "
             f"read in {rec.units} ({declared}); a face spans {lo:g}-{hi:g} mm "
-            f"(setting checks.face_spread_mm): the units are wrong, fix the "
+            f"({limits.name('face_spread_mm')}): the units are wrong, fix the "
             f"{'file' if rec.units_source == 'file' else 'sheet'}'s units")
     return spread
 
@@ -209,7 +218,7 @@ def check_rate(rec: Recording, limits: Limits) -> None:
     lo, hi = limits.rate_hz
     if not lo <= rec.rate <= hi:
         raise InputError(f"{rec.source or 'recording'}: frame rate {rec.rate:g} Hz is outside "
-                         f"{lo:g}-{hi:g} Hz (setting checks.rate_hz): is the time column in "
+                         f"{lo:g}-{hi:g} Hz ({limits.name('rate_hz')}): is the time column in "
                          "seconds and the rate in Hz?")
 
 
@@ -261,8 +270,8 @@ def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 20
         if proper > limits.max_shape_rms_mm:
             raise InputError(
                 f"{where}: the face differs from {recs[0].source}'s by {proper:.3g} mm RMS at "
-                f"best after a rigid fit (limit {limits.max_shape_rms_mm:g} mm, setting "
-                "checks.max_shape_rms_mm): markers relabelled, or another face?")
+                f"best after a rigid fit (limit {limits.max_shape_rms_mm:g} mm, "
+                f"{limits.name('max_shape_rms_mm')}): markers relabelled, or another face?")
         out.append(proper)
     return out
 
@@ -284,7 +293,7 @@ def check_take_length(rec: Recording, limits: Limits, role: str = "") -> None:
     if rec.n_frames < limits.min_take_frames:
         raise InputError(f"{rec.source or 'recording'}: {role + ' ' if role else ''}take has "
                          f"{rec.n_frames} frame(s), fewer than the minimum "
-                         f"{limits.min_take_frames} (setting checks.min_take_frames)")
+                         f"{limits.min_take_frames} ({limits.name('min_take_frames')})")
 
 
 def _reachable(x: np.ndarray, frames: np.ndarray, rate: float, vmax: float) -> np.ndarray:
@@ -374,10 +383,11 @@ def find_outliers(rec: Recording, limits: Limits,
         why = []
         if far[:, j].any():
             why.append(f"{int(far[:, j].sum())} at up to {np.max(dist[:, j]):.3g} mm from the face "
-                       f"centre (limit {limits.max_distance_mm:g} mm, gaps.max_distance_mm)")
+                       f"centre (limit {limits.max_distance_mm:g} mm, "
+                       f"{limits.name('max_distance_mm')})")
         if fast[:, j].any():
             why.append(f"{int(fast[:, j].sum())} reached at up to {top_speed[j]:.3g} mm/s "
-                       f"(limit {limits.max_speed_mm_s:g} mm/s, gaps.max_speed_mm_s)")
+                       f"(limit {limits.max_speed_mm_s:g} mm/s, {limits.name('max_speed_mm_s')})")
         notes.append(f"marker {rec.labels[j]!r}: {int(out[:, j].sum())} outlier sample(s) in "
                      f"{len(runs(out[:, j]))} run(s), first at frame {first + 1} "
                      f"(t = {first / rec.rate:.3f} s): {'; '.join(why)}")
@@ -405,7 +415,7 @@ def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,
                          f"outliers (more than {MAX_OUTLIER_FRACTION:.0%}; first: {notes[0]})")
     if notes:
         if limits.outliers == "error":
-            raise InputError(f"{where}: {notes[0]} (gaps.outliers is 'error')")
+            raise InputError(f"{where}: {notes[0]} ({limits.name('outliers')} is 'error')")
         for note in notes:
             log.warning("%s: %s; treated as gaps", where, note)
     if mask.any():  # the caller's take is left as it was

@@ -34,9 +34,9 @@ def material_matrix(E: float = 1.0, nu: float = 0.01) -> np.ndarray:
 
 def _check_material(E: float, nu: float) -> None:
     if not np.isfinite(E) or E <= 0:
-        raise InputError(f"lip FEM setting E: Young's modulus must be positive, got {E}")
+        raise InputError(f"E: Young's modulus must be positive, got {E}")
     if not np.isfinite(nu) or not -1 < nu < 0.5:
-        raise InputError(f"lip FEM setting nu: Poisson's ratio must be in (-1, 0.5), got {nu}")
+        raise InputError(f"nu: Poisson's ratio must be in (-1, 0.5), got {nu}")
 
 
 def cst_b_matrix(xy: np.ndarray) -> tuple[np.ndarray, float]:
@@ -112,7 +112,7 @@ def assemble_stiffness(mesh: LipMesh, E: float = 1.0, nu: float = 0.01,
     for name, val in (("ridge_factor", ridge_factor), ("strip_factor", strip_factor),
                       ("thickness", thickness)):
         if not np.isfinite(val) or val <= 0:
-            raise InputError(f"lip FEM setting {name}: must be positive, got {val}")
+            raise InputError(f"{name}: must be positive, got {val}")
     factors = mesh.stiffness_factors(ridge_factor, strip_factor)
     rows, cols, vals = [], [], []
     for t, tri in enumerate(mesh.triangles):

@@ -62,7 +62,7 @@ class LLSE:
     def estimate(self, y: np.ndarray, observed: np.ndarray, noise_var: float) -> np.ndarray:
         """u_hat (frames, D) from y (frames, p), the values of the DOF `observed` (p,)."""
         if not np.isfinite(noise_var) or noise_var < 0:
-            raise InputError(f"LLSE setting noise_var: must be >= 0 mm^2, got {noise_var}")
+            raise InputError(f"noise_var: must be >= 0 mm^2, got {noise_var}")
         y = np.atleast_2d(np.asarray(y, dtype=float))
         observed = np.asarray(observed, dtype=int)
         if y.shape[1] != len(observed):

@@ -320,7 +320,7 @@ def unit_scale(mesh: LipMesh, extent: tuple[float, float, float] | None) -> np.n
         return np.ones(3)
     extent = np.asarray(extent, dtype=float)
     if extent.shape != (3,) or not np.all(np.isfinite(extent)) or np.any(extent <= 0):
-        raise InputError(f"lip model setting model_extent: need three positive sizes (x, y, z), "
+        raise InputError(f"model_extent: need three positive sizes (x, y, z), "
                          f"got {extent.tolist()}")
     return extent / extents(mesh.nodes)
 

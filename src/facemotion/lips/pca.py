@@ -62,7 +62,7 @@ def _check(data: np.ndarray, n_modes: int | None, what: str) -> tuple[np.ndarray
     if n_modes is None:
         n_modes = most
     if n_modes < 1 or n_modes > most:
-        raise InputError(f"{what} setting n_modes: {n_modes} modes requested but {f} frames "
+        raise InputError(f"n_modes: {n_modes} modes requested but {f} frames "
                          f"of {d} DOF support at most {max(most, 0)} (need frames > modes)")
     return data, n_modes
 

@@ -129,9 +129,9 @@ class LipModelResult:
 def _frames(frames, n: int, default: np.ndarray, name: str) -> np.ndarray:
     f = default if frames is None else np.asarray(list(frames), dtype=int)
     if f.ndim != 1 or len(f) == 0:
-        raise InputError(f"lip model setting {name}: no frames selected")
+        raise InputError(f"{name}: no frames selected")
     if f.min() < 0 or f.max() >= n:
-        raise InputError(f"lip model setting {name}: frames must be in 0..{n - 1} "
+        raise InputError(f"{name}: frames must be in 0..{n - 1} "
                          f"(0-based), got {f.min()}..{f.max()}")
     return f
 
@@ -144,9 +144,9 @@ def view_nodes(mesh: LipMesh, view: str, point_set: str, tracked: list[str],
     point ('tracked_points', the paper's reading) or every lip-band node ('mesh_nodes').
     """
     if view not in VIEW_AXES:
-        raise InputError(f"lip model setting views: unknown view {view!r} (allowed {VIEWS})")
+        raise InputError(f"view: unknown view {view!r} (allowed {VIEWS})")
     if point_set not in POINT_SETS:
-        raise InputError(f"lip model: unknown point set {point_set!r} (allowed {POINT_SETS})")
+        raise InputError(f"point_set: unknown point set {point_set!r} (allowed {POINT_SETS})")
     if view == "xyz_8_points":
         nodes = mesh.indices(view_points)
     elif point_set == "tracked_points":
@@ -185,7 +185,7 @@ def normalise_recording(recording: Recording, normalisation: str, upper_outer: l
     pts = recording.points
     if normalisation == "paper":
         if nose_label is None:
-            raise InputError("lip model setting nose_label: the paper's normalisation needs "
+            raise InputError("nose_label: the paper's normalisation needs "
                              "a nose point")
         return normalise_paper(pts, recording.index(nose_label),
                                [recording.index(t) for t in upper_outer],
@@ -193,13 +193,13 @@ def normalise_recording(recording: Recording, normalisation: str, upper_outer: l
                                source=recording.source)[0]
     if normalisation == "rigid":
         if not reference_labels:
-            raise InputError("lip model setting reference_labels: rigid head alignment needs "
+            raise InputError("reference_labels: rigid head alignment needs "
                              "reference landmarks")
         ref = [recording.index(r) for r in reference_labels]
         return align_rigid(pts, np.array(ref), source=recording.source)[0]
     if normalisation == "none":
         return np.asarray(pts, dtype=float)
-    raise InputError(f"lip model setting normalisation: {normalisation!r} is not one of "
+    raise InputError(f"normalisation: {normalisation!r} is not one of "
                      f"'paper', 'rigid', 'none'")
 
 
@@ -230,12 +230,12 @@ def run_lip_model(mesh: LipMesh, recording: Recording, tracked_labels: list[str]
     """
     tracked = [str(t) for t in tracked_labels]
     if len(tracked) != len(set(tracked)):
-        raise InputError(f"lip model setting tracked_labels: repeated labels in {tracked}")
+        raise InputError(f"tracked_labels: repeated labels in {tracked}")
     F = recording.n_frames
     test = _frames(test_frames, F, np.arange(max(F - 10, 1), F), "test_frames")
     train = _frames(train_frames, F, np.arange(0, max(F - 10, 1)), "train_frames")
     if np.intersect1d(train, test).size:
-        raise InputError("lip model settings train_frames/test_frames overlap")
+        raise InputError("train_frames, test_frames: the training and test frames overlap")
     tracked_nodes = mesh.indices(tracked)  # names a label that is not a node
     cols = [recording.index(t) for t in tracked]
     upper, lower = outer_subsets(mesh, tracked)
@@ -269,7 +269,7 @@ def run_lip_model(mesh: LipMesh, recording: Recording, tracked_labels: list[str]
     data = (U * k_unit).reshape(F, -1)[:, state]
     all_modes = pca_svd(data[train])                                    # eq. 13, PCA
     if n_modes > all_modes.n_modes:
-        raise InputError(f"lip model setting n_modes: {n_modes} modes requested but "
+        raise InputError(f"n_modes: {n_modes} modes requested but "
                          f"{len(train)} training frames support at most {all_modes.n_modes}")
     modes = all_modes.truncated(n_modes)
     if noise_var == "ppca":
@@ -406,7 +406,7 @@ def _heldout_table(mesh: LipMesh, recording: Recording, data_m: np.ndarray,
     """
     bad = sorted(set(heldout) & set(tracked))
     if bad:
-        raise InputError(f"lip model setting heldout_labels: {bad} are tracked, not held out")
+        raise InputError(f"heldout_labels: {bad} are tracked, not held out")
     h_nodes = mesh.indices(heldout)
     h_cols = [recording.index(h) for h in heldout]
     measured = data_m[:, h_cols] - data_m[0, h_cols]

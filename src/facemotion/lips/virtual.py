@@ -132,11 +132,11 @@ def make_virtual_talker(n_frames: int = 150, rate: float = 30.0, noise_mm: float
                         strip_width: int = 11, strip_rows: int = 4) -> VirtualLipTalker:
     """The virtual talker (defaults: 150 frames at 30 Hz, 0.3 mm noise, head motion on)."""
     if n_frames < 2:
-        raise InputError(f"virtual talker setting n_frames: need >= 2, got {n_frames}")
+        raise InputError(f"n_frames: need >= 2, got {n_frames}")
     if noise_mm < 0:
-        raise InputError(f"virtual talker setting noise_mm: must be >= 0, got {noise_mm}")
+        raise InputError(f"noise_mm: must be >= 0, got {noise_mm}")
     if n_around % 8:
-        raise InputError(f"virtual talker setting n_around: must be a multiple of 8 (tracked "
+        raise InputError(f"n_around: must be a multiple of 8 (tracked "
                          f"points every 45 degrees), got {n_around}")
     mesh = parametric_lip_mesh(n_around=n_around, n_rings=n_rings, strip_width=strip_width,
                                strip_rows=strip_rows)

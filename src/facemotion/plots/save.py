@@ -25,7 +25,7 @@ def figure_paths(stem: str | os.PathLike, formats: Iterable[str] = ("png",)) -> 
     formats = list(formats)
     bad = [f for f in formats if f not in FIGURE_FORMATS]
     if bad:
-        raise InputError(f"setting figures.formats: unknown format(s) {bad} "
+        raise InputError(f"formats: unknown figure format(s) {bad} "
                          f"(one of {list(FIGURE_FORMATS)})")
     ordered = ["png"] + [f for f in FIGURE_FORMATS if f in formats and f != "png"]
     return [f"{stem}.{f}" for f in ordered]

@@ -44,7 +44,7 @@ def r_scale(rows: int, normalisation: str = DEFAULT_R_NORMALISATION) -> float:
         return float(np.sqrt(rows))             # RMS per coordinate sample
     if normalisation == "per_frame":
         return float(np.sqrt(rows / 3.0))       # RMS 3-D size per frame
-    raise InputError(f"r_normalisation: unknown normalisation {normalisation!r}; use one of "
+    raise InputError(f"normalisation: unknown R normalisation {normalisation!r}; use one of "
                      f"{', '.join(R_NORMALISATIONS)}")
 
 

@@ -126,11 +126,11 @@ def study_route(n: int, method: str = "auto", k_max: int | None = None) -> tuple
     matrix is not accurate enough). A method other than 'auto' is taken as given.
     """
     if method not in METHODS:
-        raise InputError(f"setting qr.method: unknown ranking method {method!r}; use one of "
+        raise InputError(f"method: unknown ranking method {method!r}; use one of "
                          f"{', '.join(METHODS)}")
     if method == "randomized":
         if k_max is None:
-            raise InputError("setting qr.k_max: the randomized route needs k_max (how many "
+            raise InputError("k_max: the randomized route needs k_max (how many "
                              "pivots to choose)")
         return "randomized", f"qr.method 'randomized', first k_max = {k_max} pivots"
     if method != "auto":

@@ -262,9 +262,12 @@ def limits_from_config(gaps: dict, checks: dict):
     """The loading checks' limits from the ``gaps`` and ``checks`` settings."""
     from facemotion.ingest.validation import Limits
 
+    groups = {"gaps": ("max_distance_mm", "max_speed_mm_s", "outliers"),
+              "checks": ("min_take_frames", "face_spread_mm", "rate_hz", "max_shape_rms_mm")}
+    names = {f: f"setting {group}.{f}" for group, fields in groups.items() for f in fields}
     return Limits(max_distance_mm=gaps["max_distance_mm"],
                   max_speed_mm_s=gaps["max_speed_mm_s"], outliers=gaps["outliers"],
                   min_take_frames=checks["min_take_frames"],
                   face_spread_mm=tuple(checks["face_spread_mm"]),
                   rate_hz=tuple(checks["rate_hz"]),
-                  max_shape_rms_mm=checks["max_shape_rms_mm"])
+                  max_shape_rms_mm=checks["max_shape_rms_mm"], names=names)
