@@ -5,10 +5,8 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:  # tables come from pandas; this module itself does not need it
-    pass
 from facemotion.errors import InputError
 
 FIGURE_FORMATS = ("png", "pdf", "svg")
