@@ -106,7 +106,7 @@ def parse_rank(stdout):
 
 @pytest.mark.workflow
 def test_rank_prints_the_workflows_first_pivots_on_animface(tmp_path):
-    from test_real_data import shared_data
+    from helpers import require_shared_data as shared_data
 
     root = shared_data()
     takes = sorted((root / "animface").glob("animface_*.c3d"))  # the real sheet's order
@@ -147,7 +147,7 @@ def test_rank_says_what_the_loading_filled_and_names_a_repeated_head_marker(tmp_
     (the ranking equals the clean take's, as the one sample is interpolated); a head marker
     given twice is blamed on the option, not on the file."""
     import ezc3d
-    from test_real_data import shared_data
+    from helpers import require_shared_data as shared_data
 
     jaw = shared_data() / "animface" / "animface_jaw.c3d"
     c = ezc3d.c3d(str(jaw))

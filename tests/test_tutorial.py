@@ -19,7 +19,7 @@ def test_notebook_is_stored_without_outputs():
 
 @pytest.mark.slow
 def test_tutorial_runs(monkeypatch):
-    from test_real_data import shared_data
+    from helpers import require_shared_data as shared_data
 
     nb = nbformat.read(DOCS / "tutorial.ipynb", as_version=4)
     monkeypatch.setenv("FACEMOTION_SHARED_DATA", str(shared_data()))
