@@ -180,3 +180,51 @@ def test_datasets_of_one_subject_check_each_sentence_once(tmp_path, monkeypatch,
     for a, b in zip(together, alone, strict=True):
         assert np.array_equal(a.displacements.A, b.displacements.A)
         assert a.sentences.equals(b.sentences) and a.gap_report.equals(b.gap_report)
+
+
+def test_marker_lists_keep_include_order_and_add_head_markers_last():
+    """The analysed markers follow include_markers (or the data's order) less the excluded
+    ones; the checked markers are those plus the head markers not already analysed."""
+    from facemotion.ingest.loading import check_marker_lists
+
+    labels = HEAD + ["m1", "m2", "m3"]
+    keep, used = check_marker_lists(labels, "take.csv", head_markers=["h2", "h1", "h3"],
+                                    exclude_markers=["m2"], include_markers=["m3", "m2", "h1"])
+    assert keep == ["m3", "h1"] and used == ["m3", "h1", "h2", "h3"]
+    keep, used = check_marker_lists(labels, "take.csv", exclude_markers=HEAD)
+    assert keep == used == ["m1", "m2", "m3"]
+    with pytest.raises(InputError, match=r"^include_markers \(the arguments\): marker\(s\) m1 "
+                                         "listed twice$"):
+        check_marker_lists(labels, "take.csv", include_markers=["m1", "m1", "m2"],
+                           markers_named_in="the arguments")
+    with pytest.raises(InputError, match="^take.csv: fewer than 2 markers left"):
+        check_marker_lists(labels, "take.csv", include_markers=["m1", "h1"],
+                           exclude_markers=["h1"])
+
+
+def test_head_motion_removal_stage_leaves_only_the_planted_face_motion():
+    """Two takes of a rigidly moving head (remove_head_motion on in-memory recordings): after
+    the stage every head marker stands still at one place for both takes, the fit residual is
+    ~0, and each face marker's distance moved from the first frame is the planted one (the
+    head frame differs from the world frame only by one fixed rigid transform)."""
+    from facemotion.ingest.loading import remove_head_motion
+
+    rng = np.random.default_rng(3)
+    labels = HEAD + ["m1", "m2"]
+    neutral = np.array([[0, 100, 0], [60, 90, 10], [-60, 90, 10], [0, 60, 40], [0, 0, 50],
+                        [0, -60, 40]], float)
+    recs, planted = [], []
+    for take in range(2):
+        local = np.repeat(neutral[None], 50, axis=0)
+        local[:, 4:] += rng.normal(0, 2, (50, 2, 3))
+        rot = Rotation.from_rotvec(rng.normal(0, 0.05, (50, 3)))
+        pts = np.stack([r.apply(local[i]) for i, r in enumerate(rot)]) + rng.normal(0, 5, 3)
+        recs.append(Recording(labels, pts, 100.0, f"take{take}"))
+        planted.append(np.linalg.norm(local[:, 4:] - local[0, 4:], axis=2))
+    aligned, residuals = remove_head_motion(recs, HEAD, "take0")
+    head = np.concatenate([a.points[:, :4] for a in aligned])
+    assert np.max(np.abs(head - head[0])) < 1e-9
+    assert max(float(np.max(r)) for r in residuals) < 1e-9
+    for a, want in zip(aligned, planted, strict=True):
+        moved = np.linalg.norm(a.points[:, 4:] - a.points[0, 4:], axis=2)
+        assert np.allclose(moved, want, atol=1e-9)

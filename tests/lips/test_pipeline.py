@@ -222,3 +222,33 @@ def test_figures_are_deterministic(virtual_rigid, grid_result):
         plot_mesh(res.mesh, res.tracked).savefig(buf, format="png", metadata={"Software": None})
         out.append(buf.getvalue())
     assert out[0] == out[1]
+
+
+def test_lip_study_of_the_virtual_talker_read_back_from_trc(tmp_path):
+    """The workflow's lip study of a virtual subject: its TRC file read back differs from the
+    talker by the file's rounding only, a sample moved by 0.25 mm is reported as 0.25 mm, and
+    the written tables name the subject first; another talker's file is refused."""
+    from facemotion.io.trc import read_trc, write_trc
+    from facemotion.lips.pipeline import LipSettings, check_round_trip, lip_study
+
+    talker = make_virtual_talker(n_frames=40, seed=2)
+    write_trc(tmp_path / "tracks.trc", talker.recording)
+    rec = read_trc(tmp_path / "tracks.trc")
+    assert check_round_trip(talker, rec) < 1e-4
+    moved = Recording(rec.labels, rec.points.copy(), rec.rate, rec.source)
+    moved.points[7, 3, 1] = talker.recording.points[7, 3, 1] + 0.25
+    assert check_round_trip(talker, moved) == pytest.approx(0.25, abs=1e-6)
+    settings = LipSettings(train_frames=tuple(range(30)), test_frames=tuple(range(30, 40)),
+                           n_modes=5)
+    study = lip_study([rec], {"source": "virtual", "frames": 40, "seed": 2}, settings,
+                      subject="v2")
+    assert study.heldout_points is study.result.truth_recovery
+    assert list(study.result.test_frames) == list(range(30, 40))
+    for table in (study.reconstruction, study.counts):
+        assert list(table.columns[:1]) == ["lip_subject"] and set(table["lip_subject"]) == {"v2"}
+    assert "lip_subject" not in study.result.counts.columns
+    assert study.modes_title.startswith("Virtual lip talker (v2): ")
+    other = make_virtual_talker(n_frames=40, seed=2)
+    other.recording.labels[0] = "elsewhere"
+    with pytest.raises(InputError, match="labels differ from the virtual talker's"):
+        check_round_trip(other, rec)

@@ -355,3 +355,30 @@ def test_animation_page_embeds_the_file(tmp_path):
     gif = tmp_path / "a.gif"
     write_animation(gif, _frames(3, 60, 90), fps=10.0)
     assert 'src="data:image/gif;base64,' in animation_page(gif, "t").decode()
+
+
+def test_heldout_clip_captions_each_kept_frame_by_its_sentence():
+    """Two held-out sentences of 10 and 7 frames at 120 Hz shown at up to 50 fps: every
+    third frame (40 fps); each caption names the frame's sentence, its frame number there and
+    its time; the still is the frame displaced most."""
+    from facemotion.ingest.displacements import Displacements
+    from facemotion.plots.animation import heldout_clip
+
+    rng = np.random.default_rng(0)
+    n, frames = 4, (10, 7)
+    A = rng.normal(0, 1, (3 * sum(frames), n))
+    A[3 * 12:3 * 14] *= 50  # frames 3 and 4 of the second sentence move most (only 3 is kept)
+    row_sentence = np.concatenate([np.full(3 * f, s) for s, f in enumerate(frames)])
+    row_frame = np.concatenate([np.repeat(np.arange(f), 3) for f in frames])
+    F = A.shape[0] // 3
+    part = Displacements(A, list("abcd"), ["s31", "s32"], row_sentence, row_frame, 120.0,
+                         np.zeros((F, n), bool), np.zeros(F), np.zeros((n, 3)))
+    clip = heldout_clip(part, 2 * A, 50.0, "S1")
+    kept = [0, 3, 6, 9, 12, 15]
+    assert clip.fps == 40.0 and len(clip.captions) == len(kept)
+    np.testing.assert_array_equal(clip.measured[1], A[9:12].T)  # frame 3: rows 9-11
+    np.testing.assert_array_equal(clip.model, 2 * clip.measured)
+    assert clip.captions[0] == "S1: held-out sentence s31, frame 1 of 10 (t = 0.00 s)"
+    assert clip.captions[3] == "S1: held-out sentence s31, frame 10 of 10 (t = 0.07 s)"
+    assert clip.captions[4] == "S1: held-out sentence s32, frame 3 of 7 (t = 0.02 s)"
+    assert kept[clip.largest_motion] == 12

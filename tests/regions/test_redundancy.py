@@ -105,3 +105,30 @@ def test_without_fill_flags_the_later_column_is_the_copy():
         df = find_redundant_markers(to_A(D), labels, rs, RATE, fill_mask=mask)
         assert len(df) == 1, df
         assert (df.iloc[0].marker, df.iloc[0].explained_by) == ("m13", "m11")
+
+
+def test_noise_estimate_recovers_planted_white_noise():
+    """RMS(second difference of velocity) / sqrt(6) is the sd of white positional noise: on
+    still markers with planted noise of 0.2 and 0.7 mm the estimate is within 3% of each."""
+    from facemotion.regions.redundancy import noise_estimate, velocity_blocks
+
+    rng = np.random.default_rng(5)
+    sd = np.array([0.2, 0.7])
+    D = rng.standard_normal((2000, 3, 2)) * sd
+    vel = velocity_blocks(D, [np.arange(1000), np.arange(1000, 2000)], b=13)
+    assert vel.blocks.shape == (2 * 77, 3 * 13, 2)  # 999 velocities: 77 blocks, last padded
+    assert list(vel.counts[75:79]) == [13, 11, 13, 13]
+    assert np.allclose(noise_estimate(vel, noise_mm=0.5), sd, rtol=0.03)
+
+
+def test_intervals_touching_at_a_sentence_boundary_merge():
+    """A pair's interval that ends on a sentence's last frame and the next one that starts on
+    the next sentence's first frame are one; a gap, another pair or a skipped sentence is not."""
+    from facemotion.regions.redundancy import merge_across_sentences
+
+    groups = [np.arange(0, 10), np.arange(10, 20), np.arange(20, 30)]
+    merged = merge_across_sentences(
+        [(0, 1, 5, 10, 0), (0, 1, 10, 14, 1), (0, 2, 5, 10, 0), (0, 2, 11, 20, 1),
+         (1, 2, 0, 10, 0), (1, 2, 20, 30, 2)], groups)
+    assert merged == [[0, 1, 5, 14, [0, 1]], [0, 2, 5, 10, [0]], [0, 2, 11, 20, [1]],
+                      [1, 2, 0, 10, [0]], [1, 2, 20, 30, [2]]]

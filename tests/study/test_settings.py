@@ -132,3 +132,24 @@ def test_nan_and_infinity_in_any_setting_are_errors(tmp_path):
         with pytest.raises(InputError, match=rf"^setting {re.escape(where)}: (nan|inf) is not a "
                                              "finite number$"):
             validate_config(config, schema)
+
+
+def test_lip_settings_from_the_config(config):
+    """The schema's defaults as the lip model's settings: the paper's frames 1-140 / 141-150
+    made 0-based, 'auto' noise as the probabilistic-PCA choice, the paper's model extent;
+    a noise_var that is neither a number nor 'auto' is one line naming the setting."""
+    from facemotion.study.settings import lip_settings
+
+    lips = copy.deepcopy(config["lips"])
+    lips.update(train_frames="1-140", test_frames="141-150", noise_var="auto")
+    s = lip_settings(lips, 150)
+    assert s.train_frames == tuple(range(140)) and s.test_frames == tuple(range(140, 150))
+    assert s.noise_var == "ppca" and s.model_extent == (2.35, 2.83, 5.05)
+    assert s.model_kwargs()["noise_grid"] == tuple(lips["noise_var_sweep"])
+    assert lip_settings({**lips, "noise_var": 1e-4, "model_extent": None}, 150).model_kwargs()[
+        "model_extent"] is None
+    with pytest.raises(InputError, match=r"^setting lips.noise_var: 'big' is neither a number "
+                                         r"nor 'auto'$"):
+        lip_settings({**lips, "noise_var": "big"}, 150)
+    with pytest.raises(InputError, match=r"^setting lips.test_frames: sentence\(s\) \[151\]"):
+        lip_settings({**lips, "test_frames": "141-151"}, 150)

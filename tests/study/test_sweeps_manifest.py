@@ -181,3 +181,26 @@ def test_the_manifest_job_does_not_import_pandas():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert out.strip() == "False"
+
+
+def test_talker_summary_ranks_the_papers_named_markers():
+    """Per talker: the first 10 pivots, the pivot order of 40, 56, 34, 38, 36 (-1 when the
+    talker lacks one) and the error at k = 10; the first 16 pivots as Table I columns."""
+    from facemotion.study.sweeps import talker_summary, top_k_frequency
+
+    orders = {"T1": [str(m) for m in [40, 34, 38, 2, 36] + list(range(60, 75)) + [56]],
+              "T2": [str(m) for m in [34, 40, 36] + list(range(60, 80))]}
+    r_values = {t: pd.DataFrame({"order": range(1, len(o) + 1), "marker": o})
+                for t, o in orders.items()}
+    curves = {t: pd.DataFrame({"k": range(1, 21), "mean_abs_error_mm": np.arange(1, 21) / i})
+              for i, t in enumerate(orders, start=1)}
+    table, selected = talker_summary(r_values, curves)
+    assert list(table["talker"]) == ["T1", "T2"]
+    assert table.loc[0, "first_pivots"] == "40,34,38,2,36,60,61,62,63,64"
+    ranks = table[["rank_lower_lip_40", "rank_jaw_56", "rank_left_corner_34",
+                   "rank_right_corner_38", "rank_upper_lip_36"]].to_numpy()
+    np.testing.assert_array_equal(ranks, [[1, 21, 2, 3, 5], [2, -1, 1, -1, 3]])
+    np.testing.assert_allclose(table["heldout_mean_abs_error_mm_k10"], [10.0, 5.0])
+    assert list(selected.columns) == ["order", "T1", "T2"] and len(selected) == 16
+    freq = top_k_frequency(selected, k=3).set_index("marker")["count"]
+    assert freq.to_dict() == {"34": 2, "40": 2, "36": 1, "38": 1}

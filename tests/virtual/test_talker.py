@@ -368,3 +368,18 @@ def test_occlusions_are_missing_samples_that_survive_c3d(tmp_path):
     write_c3d(tmp_path / "s.c3d", subj.recordings[k])
     back = read_c3d(tmp_path / "s.c3d")
     assert np.array_equal(np.isnan(back.points), np.isnan(subj.recordings[k].points))
+
+
+def test_head_motion_moves_points_about_the_pivot_and_is_undone():
+    """move_head: a quarter turn about z (y up, x to the left) takes a point 10 mm to the
+    left of the pivot to 10 mm above it, then shifts it by T; head_frame_points undoes any
+    motion."""
+    from facemotion.virtual.talker import HEAD_PIVOT, head_frame_points, move_head
+
+    motion = np.array([[0.0, 0.0, np.pi / 2, 1.0, 2.0, 3.0]])
+    q = (HEAD_PIVOT + [10.0, 0.0, 0.0])[None, None]
+    assert np.allclose(move_head(q, motion), HEAD_PIVOT + [0.0, 10.0, 0.0] + [1.0, 2.0, 3.0])
+    rng = np.random.default_rng(1)
+    motion = np.concatenate([rng.normal(0, 0.05, (7, 3)), rng.normal(0, 3, (7, 3))], axis=1)
+    pts = rng.normal(0, 50, (7, 4, 3))
+    assert np.allclose(head_frame_points(move_head(pts, motion), motion), pts, atol=1e-12)

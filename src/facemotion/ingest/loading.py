@@ -23,13 +23,13 @@ from facemotion.ingest.displacements import (
     split_roles,
 )
 from facemotion.ingest.segments import Segment, cut
-from facemotion.io.recording import finite_samples
+from facemotion.io.recording import Recording, finite_samples
 
 if TYPE_CHECKING:
     from facemotion.ingest.validation import Limits
 
-# read_recording, align_head, fill_gaps and the validation are imported in load_dataset: a job
-# that only splits a dataset's rows (split_roles) does not load the readers or scipy.
+# read_recording, align_head, fill_gaps and the validation are imported in the stages that use
+# them: a job that only splits a dataset's rows (split_roles) does not load the readers or scipy.
 
 log = logging.getLogger("facemotion")
 
@@ -106,29 +106,72 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     recordings read are never modified), with the results of the sentences' checks that
     found nothing to warn about. Without it, a take is dropped once cut.
     """
-    from facemotion.ingest.gaps import fill_gaps
-    from facemotion.ingest.head_motion import align_head
-    from facemotion.ingest.validation import Limits, check_same_shape, check_take
-    from facemotion.io.registry import read_recording
+    from facemotion.ingest.validation import Limits, check_same_shape
 
     limits = limits or Limits()
+    source = TakeSource(fmt, units, subject_prefix)
     items = [Segment.from_param(s) for s in (sentences if sentences is not None
                                               else recordings)]
-    order = list(train) + list(heldout)
-    chosen = [items[i] for i in order]
-    paths = [s.take for s in chosen]
+    chosen = [items[i] for i in list(train) + list(heldout)]
+    where = chosen[0].take
     roles = ["train"] * len(train) + ["heldout"] * len(heldout)
+    recs = read_sentences(chosen, source, takes)
+    labels = recs[0].labels
+    keep, used = check_marker_lists(labels, where, head_markers, exclude_markers,
+                                    include_markers, markers_named_in)
+    recs, checks = check_sentences(recs, chosen, roles, used, limits, source, takes)
+    shape_rms = check_same_shape(recs, limits)
+    if head_markers:
+        recs, residuals = remove_head_motion(recs, list(head_markers), where)
+    else:
+        residuals = [np.zeros(r.n_frames) for r in recs]
+    recs = select_markers(recs, keep, labels)
+    missing = [~finite_samples(r.points) for r in recs]
+    recs = fill_by_copying(recs, list(copy_markers), where)
+    filled_recs, reports = fill_all_gaps(recs, missing, list(copy_markers), max_interp_s,
+                                         long_gaps)
+    names = [s.name for s in chosen]
+    disp = build_displacements(filled_recs, names, neutral=neutral, head_residuals=residuals)
+    gap_report = gap_report_table(reports, checks, [used.index(m) for m in keep])
+    table = sentences_table(chosen, roles, recs, residuals, checks, shape_rms)
+    rate = recs[0].rate
+    starts = np.cumsum([0] + [r.n_frames for r in recs])[:-1] / rate
+    return LoadedDataset(
+        displacements=disp,
+        gap_report=gap_report,
+        sentences=table,
+        time_s=np.arange(sum(r.n_frames for r in recs)) / rate,
+        missing=np.concatenate(missing),
+        filled=np.concatenate([f.filled for f in filled_recs]),
+        sentence_starts_s=[float(s) for s in starts],
+    )
+
+
+@dataclass(frozen=True)
+class TakeSource:
+    """How a dataset's takes are read: format, the sheet's units and the subject's prefix."""
+
+    fmt: str
+    units: str | None = None
+    subject_prefix: str | None = None
+
+
+def read_sentences(chosen: list[Segment], source: TakeSource,
+                   takes: dict | None = None) -> list[Recording]:
+    """Read each take once and cut the sentences ``chosen`` from it."""
+    from facemotion.io.registry import read_recording
+
     shared = takes is not None
     takes = {} if takes is None else takes
     recs = []
-    n_takes, n_read = len(dict.fromkeys(paths)), 0
+    n_takes, n_read = len(dict.fromkeys(s.take for s in chosen)), 0
     for i, seg in enumerate(chosen):
-        key = (seg.take, fmt, units, subject_prefix)
+        key = (seg.take, source.fmt, source.units, source.subject_prefix)
         if key not in takes:
             n_read += 1
             log.info("reading %s (%d/%d)", seg.take, n_read, n_takes)
-            takes[key] = read_recording(seg.take, fmt, units=units,
-                                        subject_prefix=subject_prefix)
+            takes[key] = read_recording(seg.take, source.fmt, units=source.units,
+                                        subject_prefix=source.subject_prefix)
         recs.append(cut(takes[key], seg))
         if not seg.whole:
             log.info("sentence %d/%d %r: %s, %.4f-%.4f s, %d frames", i + 1, len(chosen),
@@ -137,7 +180,13 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         takes.clear()
     for rec in recs[1:]:
         check_same_take_layout(rec, recs[0])
-    labels = recs[0].labels
+    return recs
+
+
+def check_marker_lists(labels: list[str], where: str, head_markers=(), exclude_markers=(),
+                       include_markers=(), markers_named_in: str = "the subject sheet"
+                       ) -> tuple[list[str], list[str]]:
+    """The analysed markers and the markers the checks use (analysed, then head markers)."""
     for setting, names in (("head_markers", head_markers), ("exclude_markers", exclude_markers),
                            ("include_markers", include_markers)):
         twice = sorted({m for m in names if list(names).count(m) > 1})
@@ -146,80 +195,119 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                              "listed twice")
         for m in names:
             if m not in labels:
-                raise InputError(f"{paths[0]}: marker {m!r} (named in {setting} of "
+                raise InputError(f"{where}: marker {m!r} (named in {setting} of "
                                  f"{markers_named_in}) is not in the data")
     keep = [m for m in (include_markers or labels) if m not in set(exclude_markers)]
     if len(keep) < 2:
-        raise InputError(f"{paths[0]}: fewer than 2 markers left after include/exclude")
-    used = keep + [m for m in head_markers if m not in set(keep)]
-    checks = []
-    for i, (rec, role) in enumerate(zip(recs, roles, strict=True)):
+        raise InputError(f"{where}: fewer than 2 markers left after include/exclude")
+    return keep, keep + [m for m in head_markers if m not in set(keep)]
+
+
+def check_sentences(recs: list[Recording], chosen: list[Segment], roles: list[str],
+                    used: list[str], limits: Limits, source: TakeSource,
+                    takes: dict | None = None) -> tuple[list[Recording], list]:
+    """Each sentence on the markers ``used``, checked (units, length, outliers)."""
+    from facemotion.ingest.validation import check_take
+
+    out, checks = [], []
+    for rec, seg, role in zip(recs, chosen, roles, strict=True):
         # a sentence checked clean for another dataset of the subject (same interval, markers
         # and limits; nothing to warn about) is not checked again
-        checked = ("checked", chosen[i], fmt, units, subject_prefix, tuple(used), limits)
-        if checked in takes:
-            recs[i], found = rec.select(used), takes[checked]
+        checked = ("checked", seg, source.fmt, source.units, source.subject_prefix,
+                   tuple(used), limits)
+        if takes is not None and checked in takes:
+            selected, found = rec.select(used), takes[checked]
         else:
-            recs[i], found = check_take(rec.select(used), limits, sheet_units=units, role=role)
-            if shared and not found.units_conflict and not found.outliers.any():
+            selected, found = check_take(rec.select(used), limits, sheet_units=source.units,
+                                         role=role)
+            if takes is not None and not found.units_conflict and not found.outliers.any():
                 takes[checked] = found
+        out.append(selected)
         checks.append(found)
-    shape_rms = check_same_shape(recs, limits)
-    # Head motion: one neutral head configuration (the first take's) for all takes.
-    residuals = []
-    if head_markers:
-        if len(head_markers) < 3:
-            raise InputError(f"{paths[0]}: {len(head_markers)} head marker(s) given "
-                             f"({', '.join(head_markers)}); at least 3 are needed")
-        ref_rec = recs[0].select(list(head_markers))
-        complete = np.flatnonzero(finite_samples(ref_rec.points).all(axis=1))
-        if complete.size == 0:
-            raise InputError(f"{paths[0]}: no frame has all head markers "
-                             f"{', '.join(head_markers)}")
-        # Reference: the median head configuration over all takes (one Procrustes step:
-        # align every frame to the first take's first complete frame, then take the median),
-        # so that one odd first frame (as in tracker output) or a brow raise that moves a
-        # forehead marker does not bias every other frame.
-        first = ref_rec.points[complete[0]]
-        stacked = np.concatenate([  # only the head markers need moving for this
-            align_head(rec.select(list(head_markers)), list(head_markers),
-                       reference=first)[0].points for rec in recs])
-        reference = np.nanmedian(stacked, axis=0)
-        aligned = []
-        for rec in recs:
-            a, res = align_head(rec, list(head_markers), reference=reference)
-            aligned.append(a)
-            residuals.append(res)
-            log.info("%s: head fit RMS residual mean %.3f mm, max %.3f mm", rec.source,
-                     float(np.mean(res)), float(np.max(res)))
-        recs = aligned
-    else:
-        residuals = [np.zeros(r.n_frames) for r in recs]
-    recs = [r.select(keep) for r in recs]
+    return out, checks
+
+
+def remove_head_motion(recs: list[Recording], head_markers: list[str], where: str
+                       ) -> tuple[list[Recording], list[np.ndarray]]:
+    """Every take aligned to one neutral head configuration; the fits' residuals (mm)."""
+    from facemotion.ingest.head_motion import align_head
+
+    if len(head_markers) < 3:
+        raise InputError(f"{where}: {len(head_markers)} head marker(s) given "
+                         f"({', '.join(head_markers)}); at least 3 are needed")
+    ref_rec = recs[0].select(head_markers)
+    complete = np.flatnonzero(finite_samples(ref_rec.points).all(axis=1))
+    if complete.size == 0:
+        raise InputError(f"{where}: no frame has all head markers {', '.join(head_markers)}")
+    # Reference: the median head configuration over all takes (one Procrustes step:
+    # align every frame to the first take's first complete frame, then take the median),
+    # so that one odd first frame (as in tracker output) or a brow raise that moves a
+    # forehead marker does not bias every other frame.
+    first = ref_rec.points[complete[0]]
+    stacked = np.concatenate([  # only the head markers need moving for this
+        align_head(rec.select(head_markers), head_markers, reference=first)[0].points
+        for rec in recs])
+    reference = np.nanmedian(stacked, axis=0)
+    aligned, residuals = [], []
+    for rec in recs:
+        a, res = align_head(rec, head_markers, reference=reference)
+        aligned.append(a)
+        residuals.append(res)
+        log.info("%s: head fit RMS residual mean %.3f mm, max %.3f mm", rec.source,
+                 float(np.mean(res)), float(np.max(res)))
+    return aligned, residuals
+
+
+def select_markers(recs: list[Recording], keep: list[str], labels: list[str]
+                   ) -> list[Recording]:
+    """The takes on the analysed markers ``keep`` only."""
     dropped = [m for m in labels if m not in set(keep)]
     log.info("analysing %d of %d markers: %s", len(keep), len(labels), ", ".join(keep))
     if dropped:
         log.info("left out (sheet's include/exclude_markers): %s", ", ".join(dropped))
-    missing = [~finite_samples(r.points) for r in recs]
-    recs, copied = copy_fill(recs, list(copy_markers),
-                             where=f"{paths[0]}: subject sheet's copy_markers")
+    return [r.select(keep) for r in recs]
+
+
+def fill_by_copying(recs: list[Recording], copy_markers: list[tuple[str, str]], where: str
+                    ) -> list[Recording]:
+    """The sheet's copy_markers filled from their sources (head coordinates)."""
+    recs, copied = copy_fill(recs, copy_markers, where=f"{where}: subject sheet's copy_markers")
     for t, s in copy_markers:
         log.info("marker %s: %d missing samples filled by copying %s's displacement (head "
                  "coordinates)", t, copied[t], s)
+    return recs
+
+
+def fill_all_gaps(recs: list[Recording], missing: list[np.ndarray],
+                  copy_markers: list[tuple[str, str]], max_interp_s: float, long_gaps: str
+                  ) -> tuple[list[Recording], list[pd.DataFrame]]:
+    """Every take's remaining gaps filled; its gap report (copied gaps as before the copy)."""
+    from facemotion.ingest.gaps import fill_gaps
+
     filled_recs, reports = [], []
     for r, miss in zip(recs, missing, strict=True):
         f, rep = fill_gaps(r, max_interp_s=max_interp_s, long_gaps=long_gaps)
         filled_recs.append(f)
-        reports.append(_report_copies(rep, miss, r, list(copy_markers)))
-    names = [s.name for s in chosen]
-    disp = build_displacements(filled_recs, names, neutral=neutral, head_residuals=residuals)
-    cols = [used.index(m) for m in keep]
+        reports.append(_report_copies(rep, miss, r, copy_markers))
+    return filled_recs, reports
+
+
+def gap_report_table(reports: list[pd.DataFrame], checks: list, cols: list[int]
+                     ) -> pd.DataFrame:
+    """One row per analysed marker over all takes, with its outlier frames (``cols``: the
+    analysed markers' columns in the checks)."""
     gap_report = _aggregate_gap_reports(reports)
     gap_report.insert(len(gap_report.columns) - 2, "outlier_frames",
                       sum(c.outliers[:, cols].sum(axis=0) for c in checks).astype(int))
-    sentences = pd.DataFrame({
-        "sentence": names,
-        "file": [str(p) for p in paths],
+    return gap_report
+
+
+def sentences_table(chosen: list[Segment], roles: list[str], recs: list[Recording],
+                    residuals: list[np.ndarray], checks: list, shape_rms) -> pd.DataFrame:
+    """One row per sentence: file, interval, role, frames, head fit and the checks' findings."""
+    return pd.DataFrame({
+        "sentence": [s.name for s in chosen],
+        "file": [str(s.take) for s in chosen],
         "start_s": [0.0 if s.whole else float(s.start_s) for s in chosen],
         "end_s": [r.n_frames / r.rate if s.whole else float(s.end_s)
                   for s, r in zip(chosen, recs, strict=True)],
@@ -235,17 +323,6 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
         "shape_rms_mm": shape_rms,
         "outlier_samples": [int(c.outliers.sum()) for c in checks],
     })
-    rate = recs[0].rate
-    starts = np.cumsum([0] + [r.n_frames for r in recs])[:-1] / rate
-    return LoadedDataset(
-        displacements=disp,
-        gap_report=gap_report,
-        sentences=sentences,
-        time_s=np.arange(sum(r.n_frames for r in recs)) / rate,
-        missing=np.concatenate(missing),
-        filled=np.concatenate([f.filled for f in filled_recs]),
-        sentence_starts_s=[float(s) for s in starts],
-    )
 
 
 def _report_copies(rep: pd.DataFrame, miss: np.ndarray, rec, pairs: list[tuple[str, str]]

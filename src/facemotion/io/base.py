@@ -96,15 +96,41 @@ def fast_numeric_lines(path: Path, offset: int, first_line: int, ncol: int, sep:
     those the exact reader returns (pandas' default float parser: identical on 300,000 random
     values written with 6 decimals, the writers' format).
     """
-    import csv as _csv
-
-    import pandas as pd
-
-    sep_code = ord(sep)
     out = None if max_rows is None else np.empty((max_rows, ncol))
     blocks, numbers = [], []
     rows = 0
     line_no = first_line
+    try:
+        for chunk in _whole_line_chunks(path, offset):
+            fields, data_lines = _line_fields(chunk, ord(sep), ncol, empty_extra)
+            if fields.size:
+                vals = _parse_chunk(chunk, sep, int(fields.max()), ncol, fields.size)
+                if out is not None:
+                    if rows + vals.shape[0] > max_rows:
+                        return None
+                    out[rows:rows + vals.shape[0]] = vals
+                else:
+                    blocks.append(np.ascontiguousarray(vals))
+                rows += vals.shape[0]
+                numbers.append(line_no + np.flatnonzero(data_lines))
+            line_no += data_lines.size
+    except _Irregular:
+        return None
+    if rows == 0 or (out is not None and rows != max_rows):
+        return None
+    if out is not None:
+        values = out
+    else:
+        values = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+    return values, np.concatenate(numbers)
+
+
+class _Irregular(Exception):
+    """The text is not plainly regular: the exact line-by-line reader takes it."""
+
+
+def _whole_line_chunks(path: Path, offset: int):
+    """The file from byte ``offset`` in chunks of about FAST_CHUNK_BYTES ending at a line end."""
     carry = b""
     with open(path, "rb") as fh:
         fh.seek(offset)
@@ -113,63 +139,60 @@ def fast_numeric_lines(path: Path, offset: int, first_line: int, ncol: int, sep:
             buf = carry + data
             if not data:
                 if buf.strip(b" \r\n"):
-                    return None  # last line without a line end: the exact path says so
-                break
+                    raise _Irregular  # last line without a line end: the exact path says so
+                return
             cut = buf.rfind(b"\n") + 1
             if cut == 0:
                 carry = buf
                 continue
-            chunk, carry = buf[:cut], buf[cut:]
-            arr = np.frombuffer(chunk, dtype=np.uint8)
-            if arr.max() >= 128 or not arr.all():
-                return None  # NUL or non-ASCII text: the exact path decodes and judges it
-            nl = np.flatnonzero(arr == 10)
-            starts = np.concatenate([[0], nl[:-1] + 1])
-            length = nl - starts
-            cr = np.zeros(nl.size, dtype=bool)
-            has = length > 0
-            cr[has] = arr[nl[has] - 1] == 13
-            length = length - cr
-            seps = np.flatnonzero(arr == sep_code)  # separators per line, from positions
-            fields = np.diff(np.concatenate([[0], np.searchsorted(seps, nl)])) + 1
-            blank = length == 0
-            if np.any((fields == 1) & ~blank & (ncol > 1)):
-                return None  # a line without separators (spaces only, or one field)
-            data_lines = ~blank
-            f = fields[data_lines]
-            if f.size == 0:
-                line_no += nl.size
-                continue
-            if f.min() < ncol or (f.max() > ncol and not empty_extra):
-                return None
-            width = int(f.max())
-            try:
-                df = pd.read_csv(io.BytesIO(chunk), sep=sep.decode(), header=None,
-                                 names=range(width), dtype=np.float64, engine="c",
-                                 keep_default_na=False, na_values=[""],
-                                 quoting=_csv.QUOTE_NONE, skip_blank_lines=True)
-            except (ValueError, TypeError, pd.errors.ParserError):
-                return None
-            vals = df.to_numpy(dtype=np.float64)
-            if vals.shape[0] != f.size:
-                return None
-            if width > ncol:
-                if not np.isnan(vals[:, ncol:]).all():
-                    return None  # text beyond the declared fields: the exact path's error
-                vals = vals[:, :ncol]
-            if out is not None:
-                if rows + vals.shape[0] > max_rows:
-                    return None
-                out[rows:rows + vals.shape[0]] = vals
-            else:
-                blocks.append(np.ascontiguousarray(vals))
-            rows += vals.shape[0]
-            numbers.append(line_no + np.flatnonzero(data_lines))
-            line_no += nl.size
-    if rows == 0 or (out is not None and rows != max_rows):
-        return None
-    if out is not None:
-        values = out
-    else:
-        values = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
-    return values, np.concatenate(numbers)
+            yield buf[:cut]
+            carry = buf[cut:]
+
+
+def _line_fields(chunk: bytes, sep_code: int, ncol: int, empty_extra: bool
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The number of fields of each data line of a chunk, and which of its lines are data
+    (not blank); irregular text (NUL, non-ASCII, another field count) raises _Irregular."""
+    arr = np.frombuffer(chunk, dtype=np.uint8)
+    if arr.max() >= 128 or not arr.all():
+        raise _Irregular  # NUL or non-ASCII text: the exact path decodes and judges it
+    nl = np.flatnonzero(arr == 10)
+    starts = np.concatenate([[0], nl[:-1] + 1])
+    length = nl - starts
+    cr = np.zeros(nl.size, dtype=bool)
+    has = length > 0
+    cr[has] = arr[nl[has] - 1] == 13
+    length = length - cr
+    seps = np.flatnonzero(arr == sep_code)  # separators per line, from positions
+    fields = np.diff(np.concatenate([[0], np.searchsorted(seps, nl)])) + 1
+    blank = length == 0
+    if np.any((fields == 1) & ~blank & (ncol > 1)):
+        raise _Irregular  # a line without separators (spaces only, or one field)
+    data_lines = ~blank
+    f = fields[data_lines]
+    if f.size and (f.min() < ncol or (f.max() > ncol and not empty_extra)):
+        raise _Irregular
+    return f, data_lines
+
+
+def _parse_chunk(chunk: bytes, sep: bytes, width: int, ncol: int, n_rows: int) -> np.ndarray:
+    """The chunk's (n_rows, ncol) values by pandas' C parser (only an empty field missing)."""
+    import csv as _csv
+
+    import pandas as pd
+
+    try:
+        df = pd.read_csv(io.BytesIO(chunk), sep=sep.decode(), header=None,
+                         names=range(width), dtype=np.float64, engine="c",
+                         keep_default_na=False, na_values=[""],
+                         quoting=_csv.QUOTE_NONE, skip_blank_lines=True)
+    except (ValueError, TypeError, pd.errors.ParserError):
+        raise _Irregular from None
+    vals = df.to_numpy(dtype=np.float64)
+    if vals.shape[0] != n_rows:
+        raise _Irregular
+    if width > ncol:
+        if not np.isnan(vals[:, ncol:]).all():
+            raise _Irregular  # text beyond the declared fields: the exact path's error
+        vals = vals[:, :ncol]
+    return vals

@@ -47,15 +47,7 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
     from facemotion.io.base import unit_scale
 
     p = _check_readable(path)
-    try:
-        with open(p, encoding="utf-8-sig", newline="") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as e:
-        raise InputError(f"{p}: cannot read Motive CSV text ({e})") from None
-    if not rows or not rows[0] or rows[0][0].strip() != "Format Version":
-        first = rows[0][0] if rows and rows[0] else ""
-        raise InputError(f"{p}: not a Motive CSV export (line 1 starts with {token(first)}, not "
-                         "'Format Version'; export with the header enabled)")
+    rows = _read_rows(p)
     meta = {rows[0][k].strip(): rows[0][k + 1].strip()
             for k in range(0, len(rows[0]) - 1, 2)}
     axis_at = next((k for k, r in enumerate(rows) if r and r[0].strip() == "Frame"), None)
@@ -66,9 +58,34 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
     if types is None or names is None:
         raise InputError(f"{p}: header rows 'Type' and 'Name' not found above line "
                          f"{axis_at + 1}")
-    axes = rows[axis_at]
-    quantity = rows[axis_at - 1]
-    width = len(axes)
+    order, columns = marker_columns(p, types, names, rows[axis_at - 1], rows[axis_at])
+    rate = _frame_rate(p, meta)
+    used, source = _length_units(p, meta, units)
+    scale = unit_scale(used, f"{p} ({'Length Units' if source == 'file' else 'sheet units'})")
+    values = _frame_values(p, rows[axis_at + 1:], axis_at + 1, meta,
+                           [columns[name][a] for name in order for a in "XYZ"])
+    xyz = values.reshape(len(values), len(order), 3) * scale
+    return Recording(order, xyz, rate, source=str(p), units=used, units_source=source)
+
+
+def _read_rows(p) -> list[list[str]]:
+    """The file's CSV rows; line 1 must start with 'Format Version'."""
+    try:
+        with open(p, encoding="utf-8-sig", newline="") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise InputError(f"{p}: cannot read Motive CSV text ({e})") from None
+    if not rows or not rows[0] or rows[0][0].strip() != "Format Version":
+        first = rows[0][0] if rows and rows[0] else ""
+        raise InputError(f"{p}: not a Motive CSV export (line 1 starts with {token(first)}, not "
+                         "'Format Version'; export with the header enabled)")
+    return rows
+
+
+def marker_columns(p, types: list[str], names: list[str], quantity: list[str],
+                   axes: list[str]) -> tuple[list[str], dict[str, dict[str, int]]]:
+    """The labelled markers' names in column order and each one's X, Y, Z position columns;
+    the other columns left out with one log line."""
 
     def cell(row, j):
         return row[j].strip() if j < len(row) else ""
@@ -76,7 +93,7 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
     columns: dict[str, dict[str, int]] = {}
     order: list[str] = []
     dropped: dict[str, set[str]] = {}
-    for j in range(2, width):
+    for j in range(2, len(axes)):
         kind, name, what, axis = cell(types, j), cell(names, j), cell(quantity, j), cell(axes, j)
         if not kind and not name:
             continue  # e.g. a TimeCode column
@@ -106,6 +123,10 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
     if not order:
         raise InputError(f"{p}: no labelled marker positions (columns of type 'Marker'); "
                          "export with Markers enabled and label the markers")
+    return order, columns
+
+
+def _frame_rate(p, meta: dict) -> float:
     rate_text = meta.get("Export Frame Rate") or meta.get("Capture Frame Rate")
     try:
         rate = float(rate_text)
@@ -114,26 +135,33 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
                          f"(got {token(rate_text)})") from None
     if not math.isfinite(rate) or rate <= 0:
         raise InputError(f"{p}: frame rate must be positive, got {token(rate_text)}")
+    return rate
+
+
+def _length_units(p, meta: dict, units: str | None) -> tuple[str, str]:
+    """The length unit and where it came from ('file': Length Units, or 'sheet')."""
     length = meta.get("Length Units")
     if length:
         if length.lower() not in _UNITS:
             raise InputError(f"{p}: unknown Length Units {token(length)} (Meters, Centimeters, "
                              "Millimeters)")
-        used, source = _UNITS[length.lower()], "file"
-    elif units is not None:
-        used, source = units, "sheet"
-    else:
-        raise InputError(f"{p}: line 1 has no Length Units; give the units in the subject sheet")
-    scale = unit_scale(used, f"{p} ({'Length Units' if source == 'file' else 'sheet units'})")
-    data = [(k + 1, r) for k, r in enumerate(rows[axis_at + 1:], start=axis_at + 1)
-            if any(c.strip() for c in r)]
+        return _UNITS[length.lower()], "file"
+    if units is not None:
+        return units, "sheet"
+    raise InputError(f"{p}: line 1 has no Length Units; give the units in the subject sheet")
+
+
+def _frame_values(p, rows: list[list[str]], first_line: int, meta: dict, idx: list[int]
+                  ) -> np.ndarray:
+    """(frames, len(idx)) values of the non-blank data rows in columns ``idx``; an empty cell
+    is NaN (an occluded marker)."""
+    data = [(k + 1, r) for k, r in enumerate(rows, start=first_line) if any(c.strip() for c in r)]
     if not data:
         raise InputError(f"{p}: Motive CSV has no frames")
     total = meta.get("Total Exported Frames")
     if total and total.isdigit() and int(total) != len(data):
         raise InputError(f"{p}: Total Exported Frames is {total} but there are {len(data)} "
                          "data rows")
-    idx = [columns[name][a] for name in order for a in "XYZ"]
     values = np.empty((len(data), len(idx)))
     for r, (line_no, row) in enumerate(data):
         try:
@@ -144,8 +172,7 @@ def read_optitrack_csv(path, units: str | None = None) -> Recording:
                        and not _is_float(row[j]))
             raise InputError(f"{p}, line {line_no}: non-numeric value {token(row[bad])} in "
                              f"column {bad + 1}") from None
-    xyz = values.reshape(len(data), len(order), 3) * scale
-    return Recording(order, xyz, rate, source=str(p), units=used, units_source=source)
+    return values
 
 
 def _is_float(text: str) -> bool:

@@ -41,6 +41,27 @@ def read_qualisys_tsv(path, units: str | None = None) -> Recording:
             lines = fh.read().splitlines()
     except (OSError, UnicodeDecodeError) as e:
         raise InputError(f"{p}: cannot read QTM TSV text ({e})") from None
+    header, i = _header(lines)
+    n_frames, n_markers, rate, names = _checked_header(p, header)
+    cols: list[int] | None = None
+    if i < len(lines) and lines[i].split("\t")[0].strip() == "Frame":
+        cols = _named_columns(p, lines[i], names)
+        i += 1
+    rows = [(k + 1, line) for k, line in enumerate(lines[i:], start=i) if line.strip()]
+    if len(rows) != n_frames:
+        raise InputError(f"{p}: NO_OF_FRAMES is {n_frames} but there are {len(rows)} data lines")
+    if not rows:
+        raise InputError(f"{p}: QTM TSV file has no frames")
+    if cols is None:
+        cols = _positional_columns(p, rows[0], n_markers)
+    xyz = _frame_values(p, rows, cols).reshape(n_frames, n_markers, 3)
+    xyz[(xyz == 0).all(axis=2)] = np.nan
+    # QTM exports 3-D data in mm: the format's own units win over the sheet's
+    return Recording(names, xyz, rate, source=str(p), units="mm", units_source="file")
+
+
+def _header(lines: list[str]) -> tuple[dict[str, list[str]], int]:
+    """The header's variables (EVENT lines left out) and the index of the first line after."""
     header: dict[str, list[str]] = {}
     i = 0
     while i < len(lines):
@@ -51,6 +72,11 @@ def read_qualisys_tsv(path, units: str | None = None) -> Recording:
         if key != "EVENT":
             header[key] = [f.strip() for f in fields[1:]]
         i += 1
+    return header, i
+
+
+def _checked_header(p, header: dict[str, list[str]]) -> tuple[int, int, float, list[str]]:
+    """Frames, markers, rate (Hz) and marker names of a 3-D export's header, checked."""
     if "NO_OF_FRAMES" not in header and "MARKER_NAMES" not in header:
         raise InputError(f"{p}: not a QTM TSV export (no NO_OF_FRAMES / MARKER_NAMES header; "
                          "export with 'Include TSV header')")
@@ -84,37 +110,41 @@ def read_qualisys_tsv(path, units: str | None = None) -> Recording:
     if any(not n for n in names):
         raise InputError(f"{p}: MARKER_NAMES has an empty name (trajectory "
                          f"{names.index('') + 1})")
-    # column header (newer exports): pick each marker's X, Y, Z columns by name
-    cols: list[int] | None = None
-    if i < len(lines) and lines[i].split("\t")[0].strip() == "Frame":
-        heads = [h.strip() for h in lines[i].split("\t")]
-        where = {h: j for j, h in enumerate(heads)}
-        cols = []
-        for name in names:
-            for axis in "XYZ":
-                col = where.get(f"{name} {axis}")
-                if col is None:
-                    raise InputError(f"{p}: column header has no '{name} {axis}' column")
-                cols.append(col)
-        i += 1
-    rows = [(k + 1, line) for k, line in enumerate(lines[i:], start=i) if line.strip()]
-    if len(rows) != n_frames:
-        raise InputError(f"{p}: NO_OF_FRAMES is {n_frames} but there are {len(rows)} data lines")
-    if not rows:
-        raise InputError(f"{p}: QTM TSV file has no frames")
-    if cols is None:  # no column header: X Y Z per marker, maybe after frame and time
-        width = len(rows[0][1].rstrip("\t").split("\t"))
-        if width == 3 * n_markers:
-            first = 0
-        elif width == 3 * n_markers + 2:
-            first = 2
-        else:
-            raise InputError(f"{p}, line {rows[0][0]}: {width} fields, expected "
-                             f"{3 * n_markers} (X, Y, Z of {n_markers} markers) or "
-                             f"{3 * n_markers + 2} (with frame and time)")
-        cols = list(range(first, first + 3 * n_markers))
+    return n_frames, n_markers, rate, names
+
+
+def _named_columns(p, line: str, names: list[str]) -> list[int]:
+    """Each marker's X, Y, Z columns, by name in the column header (newer exports)."""
+    heads = [h.strip() for h in line.split("\t")]
+    where = {h: j for j, h in enumerate(heads)}
+    cols = []
+    for name in names:
+        for axis in "XYZ":
+            col = where.get(f"{name} {axis}")
+            if col is None:
+                raise InputError(f"{p}: column header has no '{name} {axis}' column")
+            cols.append(col)
+    return cols
+
+
+def _positional_columns(p, first_row: tuple[int, str], n_markers: int) -> list[int]:
+    """Without a column header: X Y Z per marker, maybe after frame and time."""
+    width = len(first_row[1].rstrip("\t").split("\t"))
+    if width == 3 * n_markers:
+        first = 0
+    elif width == 3 * n_markers + 2:
+        first = 2
+    else:
+        raise InputError(f"{p}, line {first_row[0]}: {width} fields, expected "
+                         f"{3 * n_markers} (X, Y, Z of {n_markers} markers) or "
+                         f"{3 * n_markers + 2} (with frame and time)")
+    return list(range(first, first + 3 * n_markers))
+
+
+def _frame_values(p, rows: list[tuple[int, str]], cols: list[int]) -> np.ndarray:
+    """(frames, len(cols)) values of the data lines (line number, text); empty is NaN."""
     need = max(cols) + 1
-    values = np.empty((n_frames, 3 * n_markers))
+    values = np.empty((len(rows), len(cols)))
     for r, (line_no, line) in enumerate(rows):
         fields = line.split("\t")
         if len(fields) < need:
@@ -125,10 +155,7 @@ def read_qualisys_tsv(path, units: str | None = None) -> Recording:
             bad = next(c for c in cols if not _is_number(fields[c]))
             raise InputError(f"{p}, line {line_no}: non-numeric value {token(fields[bad])} in "
                              f"field {bad + 1}") from None
-    xyz = values.reshape(n_frames, n_markers, 3)
-    xyz[(xyz == 0).all(axis=2)] = np.nan
-    # QTM exports 3-D data in mm: the format's own units win over the sheet's
-    return Recording(names, xyz, rate, source=str(p), units="mm", units_source="file")
+    return values
 
 
 def _is_number(text: str) -> bool:

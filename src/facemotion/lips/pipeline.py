@@ -26,11 +26,13 @@
    against the minimal-force fits of the test frames (the paper's reference), in model units^2
    and in mm^2.
 
-`virtual_lip_study` and `grid_lip_study` wrap it for the virtual talker and the GRID clips.
+`virtual_lip_study` and `grid_lip_study` wrap it for the virtual talker and the GRID clips;
+`lip_study` runs one lip subject of the workflow's settings (`LipSettings`).
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,8 +45,10 @@ from facemotion.lips.fitting import MinimalForceFitter, fit_residuals
 from facemotion.lips.llse import LLSE, ppca_noise_var
 from facemotion.lips.mesh import PAPER_MODEL_EXTENT, LipMesh, canonical_lip_mesh, unit_scale
 from facemotion.lips.normalise import align_rigid, fit_scaled_rigid, normalise_paper, to_model
-from facemotion.lips.pca import pca_svd
+from facemotion.lips.pca import Modes, pca_svd
 from facemotion.lips.virtual import VirtualLipTalker, depth_share, make_virtual_talker
+
+log = logging.getLogger("facemotion")
 
 VIEWS = ("xyz_8_points", "yz_all_points", "xy_all_points")
 VIEW_AXES = {"xyz_8_points": (0, 1, 2), "yz_all_points": (1, 2), "xy_all_points": (0, 1)}
@@ -232,10 +236,65 @@ def run_lip_model(mesh: LipMesh, recording: Recording, tracked_labels: list[str]
     if len(tracked) != len(set(tracked)):
         raise InputError(f"tracked_labels: repeated labels in {tracked}")
     F = recording.n_frames
-    test = _frames(test_frames, F, np.arange(max(F - 10, 1), F), "test_frames")
-    train = _frames(train_frames, F, np.arange(0, max(F - 10, 1)), "train_frames")
+    train, test = split_frames(train_frames, test_frames, F)
+    physics = {"E": E, "nu": nu, "ridge_factor": ridge_factor, "strip_factor": strip_factor}
+    data_m, R, s = model_coordinates(mesh, recording, tracked, normalisation, nose_label,
+                                     reference_labels)                          # steps 1-2
+    cols = [recording.index(t) for t in tracked]
+    fit = fit_frames(mesh, data_m[:, cols], tracked, physics)                    # steps 3-4
+    k_unit = unit_scale(mesh, model_extent)                            # step 5: units per mm
+    data = (fit.displacements * k_unit).reshape(F, -1)[:, fit.state]
+    learned = learn_modes(data[train], n_modes, noise_var)                       # step 6
+    truth_state = None
+    if truth is not None:
+        truth = np.asarray(truth, dtype=float)
+        if truth.shape != (F, mesh.n_nodes, 3):
+            raise InputError(f"lip model: truth must be ({F}, {mesh.n_nodes}, 3), got "
+                             f"{truth.shape}")
+        truth_state = (truth * k_unit).reshape(F, -1)[:, fit.state]
+    view_points = list(view_points) if view_points is not None else tracked[:8]
+    obs = observed_positions(fit.rest, fit.state, tracked, view_points)
+    unit_of_state = k_unit[fit.state % 3]
+    recon = reconstruction_table(reconstruction_rows(                             # step 7
+        obs, learned, data, test, unit_of_state,
+        None if truth_state is None else truth_state[test]), n_modes)
+    heldout = None
+    if heldout_labels:
+        heldout = _heldout_table(fit.rest, recording, data_m, tracked, heldout_labels,
+                                 fit.displacements, learned.estimators[f"{n_modes}_modes"],
+                                 fit.state, k_unit, obs, learned.noise_var, test)
+    counts = counts_table(mesh, tracked, nose_label is not None,
+                          F, recording.rate, train, test, n_modes,
+                          float(learned.variance_fraction.sum()), k_unit, model_extent, E, nu,
+                          ridge_factor)
+    return LipModelResult(
+        mesh=fit.rest, tracked=tracked, displacements=fit.displacements, goals=fit.goals,
+        **learned.shapes(mesh.n_nodes, fit.state),
+        unit_scale=k_unit, noise_var=learned.noise_var, noise_var_choice=learned.choice,
+        train_frames=train, test_frames=test, placement=_placement(R, s, fit.rest_goal),
+        modes=learned.all.table().head(max(n_modes, min(learned.all.n_modes, 20))),
+        fit_residuals=fit.residuals, reconstruction=recon,
+        noise_sensitivity=noise_sensitivity(obs, learned, data[test], noise_grid),
+        counts=counts, heldout_landmarks=heldout,
+        truth_recovery=None if truth_state is None else truth_recovery(data, truth_state,
+                                                                       unit_of_state))
+
+
+def split_frames(train_frames, test_frames, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Training and test frames (0-based), checked; defaults: the last 10 frames test."""
+    test = _frames(test_frames, n, np.arange(max(n - 10, 1), n), "test_frames")
+    train = _frames(train_frames, n, np.arange(0, max(n - 10, 1)), "train_frames")
     if np.intersect1d(train, test).size:
         raise InputError("train_frames, test_frames: the training and test frames overlap")
+    return train, test
+
+
+def model_coordinates(mesh: LipMesh, recording: Recording, tracked: list[str],
+                      normalisation: str, nose_label: str | None,
+                      reference_labels: list[str] | None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The recording's points normalised and brought into the model's coordinates (Sec. 3),
+    with the rotation R and the x, y, z scale s of the model's fit to the first frame."""
     tracked_nodes = mesh.indices(tracked)  # names a label that is not a node
     cols = [recording.index(t) for t in tracked]
     upper, lower = outer_subsets(mesh, tracked)
@@ -248,56 +307,113 @@ def run_lip_model(mesh: LipMesh, recording: Recording, tracked_labels: list[str]
     # the default model fitted to the first frame by rotation, translation and x, y, z scaling;
     # its inverse brings the data into the model's coordinates (Sec. 3)
     R, s, t = fit_scaled_rigid(mesh.nodes[tracked_nodes], pts[0, cols])
-    data_m = to_model(pts, R, s, t)
-    fit_kw = {"E": E, "nu": nu, "ridge_factor": ridge_factor, "strip_factor": strip_factor}
+    return to_model(pts, R, s, t), R, s
+
+
+@dataclass
+class LipFit:
+    """The minimal-force fits: the rest-state mesh, its goal (mm) on the first frame, the
+    goals U_g and displacements U of every frame (mm), the residuals, and the free DOF."""
+
+    rest: LipMesh
+    rest_goal: np.ndarray
+    goals: np.ndarray
+    displacements: np.ndarray
+    residuals: pd.DataFrame
+    state: np.ndarray
+
+
+def fit_frames(mesh: LipMesh, tracked_m: np.ndarray, tracked: list[str], physics: dict
+               ) -> LipFit:
+    """Rest state on the first frame (Sec. 2.4, Fig. 7), then every frame's fit (eqs. 7-10);
+    ``tracked_m``: the tracked points (frames, M, 3) in the model's coordinates."""
+    tracked_nodes = mesh.indices(tracked)
     # rest state: the default model deformed to the first frame, physics re-linearised there
-    rest_goal = data_m[0, cols] - mesh.nodes[tracked_nodes]
-    u_rest = MinimalForceFitter(mesh, assemble_stiffness(mesh, **fit_kw), tracked).fit(
+    rest_goal = tracked_m[0] - mesh.nodes[tracked_nodes]
+    u_rest = MinimalForceFitter(mesh, assemble_stiffness(mesh, **physics), tracked).fit(
         rest_goal)[0]
     rest = mesh.with_nodes(mesh.nodes + u_rest)
-    placement = {"scale_x": s[0], "scale_y": s[1], "scale_z": s[2],
-                 "rotation_deg": float(np.degrees(np.arccos(np.clip(
-                     (np.trace(R) - 1) / 2, -1, 1)))),
-                 "rest_rms_mm": float(np.sqrt(np.mean(np.sum(rest_goal ** 2, axis=1))))}
-    goals = data_m[:, cols] - rest.nodes[tracked_nodes]                 # U_g (Sec. 4)
-    fitter = MinimalForceFitter(rest, assemble_stiffness(rest, **fit_kw), tracked)
+    goals = tracked_m - rest.nodes[tracked_nodes]                       # U_g (Sec. 4)
+    fitter = MinimalForceFitter(rest, assemble_stiffness(rest, **physics), tracked)
     U = fitter.fit(goals)                                               # eqs. 7-10
-    residuals = fit_residuals(U, goals, fitter.tracked)
-    state = fitter.dofs
-    k_unit = unit_scale(mesh, model_extent)                            # model units per mm
-    unit_of_state = k_unit[state % 3]
-    data = (U * k_unit).reshape(F, -1)[:, state]
-    all_modes = pca_svd(data[train])                                    # eq. 13, PCA
+    return LipFit(rest, rest_goal, goals, U, fit_residuals(U, goals, fitter.tracked),
+                  fitter.dofs)
+
+
+def _placement(R: np.ndarray, s: np.ndarray, rest_goal: np.ndarray) -> dict:
+    return {"scale_x": s[0], "scale_y": s[1], "scale_z": s[2],
+            "rotation_deg": float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))),
+            "rest_rms_mm": float(np.sqrt(np.mean(np.sum(rest_goal ** 2, axis=1))))}
+
+
+@dataclass
+class LearnedModes:
+    """PCA of the training frames (``all`` modes, the first n kept), the regularised
+    estimators' noise variance and its origin, and the two LLSE estimators."""
+
+    all: Modes
+    modes: Modes
+    noise_var: float
+    choice: str
+    estimators: dict[str, LLSE]
+
+    @property
+    def variance_fraction(self) -> np.ndarray:
+        """Each kept mode's share of the total variance."""
+        return self.modes.variances / self.all.total_variance
+
+    def shapes(self, n_nodes: int, state: np.ndarray) -> dict:
+        """Mean and mode shapes on every node (zero on fixed nodes), model units."""
+        n_modes = self.modes.modes.shape[0]
+        U_modes = np.zeros((n_modes, 3 * n_nodes))
+        U_modes[:, state] = self.modes.modes
+        mean = np.zeros(3 * n_nodes)
+        mean[state] = self.modes.mean
+        return {"mean_displacement": mean.reshape(-1, 3),
+                "mode_shapes": U_modes.reshape(n_modes, -1, 3),
+                "mode_sd": np.sqrt(self.modes.variances),
+                "mode_variance_fraction": self.variance_fraction}
+
+
+def learn_modes(train_data: np.ndarray, n_modes: int, noise_var: float | str) -> LearnedModes:
+    """PCA of the training frames (sample covariance, eq. 13) and the LLSE estimators."""
+    all_modes = pca_svd(train_data)
     if n_modes > all_modes.n_modes:
         raise InputError(f"n_modes: {n_modes} modes requested but "
-                         f"{len(train)} training frames support at most {all_modes.n_modes}")
+                         f"{len(train_data)} training frames support at most "
+                         f"{all_modes.n_modes}")
     modes = all_modes.truncated(n_modes)
     if noise_var == "ppca":
-        s2, choice = ppca_noise_var(all_modes, n_modes, data.shape[1]), "ppca"
+        s2, choice = ppca_noise_var(all_modes, n_modes, train_data.shape[1]), "ppca"
     else:
         s2, choice = float(noise_var), "setting"
     estimators = {f"{n_modes}_modes": LLSE.from_modes(modes),
-                  "full_covariance": LLSE.from_data(data[train])}
-    view_points = list(view_points) if view_points is not None else tracked[:8]
-    truth_state = None
-    if truth is not None:
-        truth = np.asarray(truth, dtype=float)
-        if truth.shape != (F, mesh.n_nodes, 3):
-            raise InputError(f"lip model: truth must be ({F}, {mesh.n_nodes}, 3), got "
-                             f"{truth.shape}")
-        truth_state = (truth * k_unit).reshape(F, -1)[:, state]
+                  "full_covariance": LLSE.from_data(train_data)}
+    return LearnedModes(all_modes, modes, s2, choice, estimators)
+
+
+def observed_positions(rest: LipMesh, state: np.ndarray, tracked: list[str],
+                       view_points: list[str]) -> dict[tuple[str, str], np.ndarray]:
+    """Each (view, point set)'s observed positions in the state vector."""
     obs = {}
     for ps in POINT_SETS:
         for v in VIEWS:
             nodes, axes = view_nodes(rest, v, ps, tracked, view_points)
             obs[v, ps] = state_positions(rest, state, nodes, axes)
-    target = data[test]
-    mean_shape_err = _mse_per_dof(np.broadcast_to(modes.mean, target.shape), target)
+    return obs
 
+
+def reconstruction_rows(obs: dict, learned: LearnedModes, data: np.ndarray, test: np.ndarray,
+                        unit_of_state: np.ndarray, truth_test: np.ndarray | None = None
+                        ) -> pd.DataFrame:
+    """LLSE of the test frames' whole shape from each view (Sec. 5): one row per view x point
+    set x covariance x noise, MSE per DOF against the minimal-force fits (and the truth)."""
+    target = data[test]
+    mean_shape_err = _mse_per_dof(np.broadcast_to(learned.modes.mean, target.shape), target)
     rows = []
     for (v, ps), o in obs.items():
-        for cov, est in estimators.items():
-            for noise, s2v in (("noise_free", 0.0), ("regularised", s2)):
+        for cov, est in learned.estimators.items():
+            for noise, s2v in (("noise_free", 0.0), ("regularised", learned.noise_var)):
                 u = est.estimate(target[:, o], o, s2v)
                 row = {"view": v, "point_set": ps, "covariance": cov, "noise": noise,
                        "noise_var_model_units2": s2v, "n_observed_dof": len(o),
@@ -305,51 +421,37 @@ def run_lip_model(mesh: LipMesh, recording: Recording, tracked_labels: list[str]
                        "mse_per_dof_model_units2": _mse_per_dof(u, target),
                        "mse_per_dof_mm2": _mse_per_dof(u, target, unit_of_state),
                        "mse_mean_shape_model_units2": mean_shape_err}
-                if truth_state is not None:
-                    row["mse_vs_truth_model_units2"] = _mse_per_dof(u, truth_state[test])
+                if truth_test is not None:
+                    row["mse_vs_truth_model_units2"] = _mse_per_dof(u, truth_test)
                 rows.append(row)
-    recon = reconstruction_table(pd.DataFrame(rows), n_modes)
+    return pd.DataFrame(rows)
 
+
+def noise_sensitivity(obs: dict, learned: LearnedModes, target: np.ndarray,
+                      noise_grid: tuple[float, ...]) -> pd.DataFrame:
+    """MSE per DOF of every view and estimator at each noise variance of the grid and at the
+    one chosen."""
     sens = []
-    for value, how in [(g, "grid") for g in noise_grid] + [(s2, choice)]:
+    for value, how in [(g, "grid") for g in noise_grid] + [(learned.noise_var, learned.choice)]:
         for (v, ps), o in obs.items():
-            for cov, est in estimators.items():
+            for cov, est in learned.estimators.items():
                 u = est.estimate(target[:, o], o, value)
                 sens.append({"noise_var_model_units2": value, "choice": how, "view": v,
                              "point_set": ps, "covariance": cov,
                              "mse_per_dof_model_units2": _mse_per_dof(u, target)})
-    sens = pd.DataFrame(sens)
+    return pd.DataFrame(sens)
 
-    heldout = None
-    if heldout_labels:
-        heldout = _heldout_table(rest, recording, data_m, tracked, heldout_labels, U,
-                                 estimators[f"{n_modes}_modes"], state, k_unit, obs, s2, test)
-    truth_rec = None
-    if truth_state is not None:
-        err = (data - truth_state) / unit_of_state
-        tru = truth_state / unit_of_state
-        truth_rec = pd.DataFrame({
-            "frame": np.arange(F),
-            "rms_error_mm": np.sqrt(np.mean(err ** 2, axis=1) * 3),
-            "rms_truth_displacement_mm": np.sqrt(np.mean(tru ** 2, axis=1) * 3),
-        })
-    U_modes = np.zeros((n_modes, 3 * mesh.n_nodes))
-    U_modes[:, state] = modes.modes
-    mean = np.zeros(3 * mesh.n_nodes)
-    mean[state] = modes.mean
-    fractions = modes.variances / all_modes.total_variance
-    counts = counts_table(mesh, tracked, nose_label is not None,
-                          F, recording.rate, train, test, n_modes, float(fractions.sum()),
-                          k_unit, model_extent, E, nu, ridge_factor)
-    return LipModelResult(
-        mesh=rest, tracked=tracked, displacements=U, goals=goals,
-        mean_displacement=mean.reshape(-1, 3), mode_shapes=U_modes.reshape(n_modes, -1, 3),
-        mode_sd=np.sqrt(modes.variances), mode_variance_fraction=fractions,
-        unit_scale=k_unit, noise_var=s2, noise_var_choice=choice,
-        train_frames=train, test_frames=test, placement=placement,
-        modes=all_modes.table().head(max(n_modes, min(all_modes.n_modes, 20))),
-        fit_residuals=residuals, reconstruction=recon, noise_sensitivity=sens,
-        counts=counts, heldout_landmarks=heldout, truth_recovery=truth_rec)
+
+def truth_recovery(data: np.ndarray, truth_state: np.ndarray, unit_of_state: np.ndarray
+                   ) -> pd.DataFrame:
+    """Per frame: RMS 3-D error (mm) of the fitted displacements against the planted truth."""
+    err = (data - truth_state) / unit_of_state
+    tru = truth_state / unit_of_state
+    return pd.DataFrame({
+        "frame": np.arange(len(data)),
+        "rms_error_mm": np.sqrt(np.mean(err ** 2, axis=1) * 3),
+        "rms_truth_displacement_mm": np.sqrt(np.mean(tru ** 2, axis=1) * 3),
+    })
 
 
 def reconstruction_table(rows: pd.DataFrame, n_modes: int) -> pd.DataFrame:
@@ -493,3 +595,93 @@ def grid_lip_study(recordings: list[Recording], obj_path,
     return run_lip_model(mesh, normalised, tracked_labels, normalisation="none",
                          nose_label=nose_label, view_points=tracked_labels[:8],
                          heldout_labels=heldout, **model_kwargs)
+
+
+@dataclass(frozen=True)
+class LipSettings:
+    """The lip model's settings a study sets (config ``lips``), frames 0-based; the keyword
+    arguments of :func:`run_lip_model` they stand for are :meth:`model_kwargs`."""
+
+    train_frames: tuple[int, ...] | None = None
+    test_frames: tuple[int, ...] | None = None
+    n_modes: int = 10
+    noise_var: float | str = "ppca"
+    E: float = 1.0
+    nu: float = 0.01
+    model_extent: tuple[float, float, float] | None = PAPER_MODEL_EXTENT
+    noise_grid: tuple[float, ...] = NOISE_GRID
+    normalisation: str = "paper"
+
+    def model_kwargs(self) -> dict:
+        """The settings other than the normalisation, as run_lip_model's keyword arguments."""
+        return {"train_frames": self.train_frames, "test_frames": self.test_frames,
+                "n_modes": self.n_modes, "noise_var": self.noise_var, "E": self.E,
+                "nu": self.nu, "model_extent": self.model_extent, "noise_grid": self.noise_grid}
+
+
+@dataclass
+class LipStudy:
+    """One lip subject's study as the workflow writes it: the model's result, the talker's
+    name, and its table of points not used for the fit (GRID: the held-out landmarks;
+    virtual: the recovery of the planted truth)."""
+
+    subject: str
+    talker: str
+    result: LipModelResult
+    heldout_points: pd.DataFrame
+
+    @property
+    def modes_title(self) -> str:
+        """The title of the modes figure (the paper's Fig. 9)."""
+        return (f"{self.talker} ({self.subject}): mean displacement and characteristic modes "
+                f"(Basu & Pentland 1997, Fig. 9)")
+
+    @property
+    def reconstruction(self) -> pd.DataFrame:
+        """Table 1 (long), with the lip subject in the first column."""
+        return _with_subject(self.result.reconstruction, self.subject)
+
+    @property
+    def counts(self) -> pd.DataFrame:
+        """The paper's counts beside ours, with the lip subject in the first column."""
+        return _with_subject(self.result.counts, self.subject)
+
+
+def _with_subject(table: pd.DataFrame, subject: str) -> pd.DataFrame:
+    table = table.copy()
+    table.insert(0, "lip_subject", subject)
+    return table
+
+
+def lip_study(recordings: list[Recording], spec: dict, settings: LipSettings,
+              mesh_path=None, subject: str = "") -> LipStudy:
+    """The lip subject ``spec`` (config ``lips.subjects``) through the model: the GRID clips on
+    the face mesh at ``mesh_path``, or the virtual talker's recording as read back from its
+    file (checked against the talker it was simulated from)."""
+    common = settings.model_kwargs()
+    if spec["source"] == "grid":
+        result = grid_lip_study(recordings, mesh_path, normalisation=settings.normalisation,
+                                **common)
+        study = LipStudy(subject, "GRID talker", result, result.heldout_landmarks)
+    else:
+        talker = make_virtual_talker(n_frames=spec.get("frames", 150), seed=spec.get("seed", 0))
+        rec = recordings[0]
+        check_round_trip(talker, rec)
+        result = run_virtual(talker, rec, settings.normalisation, **common)
+        study = LipStudy(subject, "Virtual lip talker", result, result.truth_recovery)
+    log.info("model placement on the first frame: %s",
+             {k: round(float(v), 4) for k, v in result.placement.items()})
+    log.info("model units per mm (x, y, z): %s", np.round(result.unit_scale, 5).tolist())
+    log.info("noise variance of the regularised estimators %.4g model units^2 (%s)",
+             result.noise_var, result.noise_var_choice)
+    return study
+
+
+def check_round_trip(talker: VirtualLipTalker, recording: Recording) -> float:
+    """The largest difference (mm) between the talker's recording and ``recording`` (its file
+    read back), logged; its labels must be the talker's."""
+    if recording.labels != talker.recording.labels:
+        raise InputError(f"{recording.source}: labels differ from the virtual talker's")
+    err = float(np.max(np.abs(recording.points - talker.recording.points)))
+    log.info("TRC round trip of the virtual talker: max difference %.2e mm", err)
+    return err

@@ -19,28 +19,12 @@ BP_VIEW = {"xyz_8_points": "xyz of 8 points", "yz_all_points": "yz of all points
 
 
 def statements(R: Rows, inp: Inputs) -> None:
+    """B&P's statements beside the lip subject's outputs, in the paper's order."""
     rec, counts = inp.lip_reconstruction, inp.lip_counts
     ls = inp.lip_subject
     out_rec, out_cnt = f"lip_reconstruction:{ls}", f"lip_counts:{ls}"
-    # 99.2 % of the variance in 10 modes
-    q = None
-    if counts is not None:
-        sel = counts[counts["quantity"].astype(str) == "variance_in_modes_percent"]
-        if len(sel):
-            q = float(sel["our_value"].iloc[0])
-    v = ("not measured" if q is None else "reproduced" if abs(q - 99.2) <= 0.5
-         else "same shape" if q >= 95 else "differs")
-    R.add(BP, "Sec. 5", "the first 10 modes cover 99.2 % of the variance", 99.2, q,
-          f"variance of the fitted deformations in the first 10 PCA modes, % ({ls} talker)",
-          out_cnt, v, "reproduced: within 0.5 percentage points; same shape: >= 95 %; differs: "
-          "otherwise", False)
-    # Table 1 cells
-    cells: dict[tuple[str, str], float] = {}
-    if rec is not None:
-        paper_rows = rec[rec["paper_definition"].astype(str).str.lower().isin(["true", "1"])]
-        for _, row in paper_rows.iterrows():
-            cells[(str(row["view"]), str(row["covariance"]))] = float(
-                row["mse_per_dof_model_units2"])
+    variance_in_modes(R, _count(counts, "variance_in_modes_percent"), ls, out_cnt)
+    cells = table_1_cells(rec)
     for (view, cov), pv in BP_TABLE_1.items():
         our = cells.get((view, cov))
         R.add(BP, "Table 1", f"{BP_VIEW[view]}, {cov.replace('_', ' ')}", pv, our,
@@ -48,22 +32,60 @@ def statements(R: Rows, inp: Inputs) -> None:
               f"({ls} talker)", out_rec,
               "not measured" if our is None else factor_verdict(our, pv, 1.5, 10.0),
               RULE_1_5_10, False)
-    # ratios and orderings (scale-free)
-    ratios = [
-        ("xy / yz, 10 modes (frontal against profile)", ("xy_all_points", "10_modes"),
-         ("yz_all_points", "10_modes")),
-        ("xy / yz, full covariance", ("xy_all_points", "full_covariance"),
-         ("yz_all_points", "full_covariance")),
-        ("xyz of 8 points / yz, 10 modes", ("xyz_8_points", "10_modes"),
-         ("yz_all_points", "10_modes")),
-        ("full covariance / 10 modes, xyz of 8 points", ("xyz_8_points", "full_covariance"),
-         ("xyz_8_points", "10_modes")),
-        ("full covariance / 10 modes, yz of all points", ("yz_all_points", "full_covariance"),
-         ("yz_all_points", "10_modes")),
-        ("full covariance / 10 modes, xy of all points", ("xy_all_points", "full_covariance"),
-         ("xy_all_points", "10_modes")),
-    ]
-    for st, a, b in ratios:
+    table_1_ratios(R, cells, out_rec)
+    view_orderings(R, cells, out_rec)
+    mesh_counts(R, counts, ls, out_cnt)
+    depth_variation(R, _count(counts, "depth_share_test_frames"), out_cnt)
+
+
+def _count(counts, quantity: str) -> float | None:
+    """Our value of ``quantity`` in the lip model's counts table (None if absent)."""
+    if counts is None:
+        return None
+    sel = counts[counts["quantity"].astype(str) == quantity]
+    return float(sel["our_value"].iloc[0]) if len(sel) else None
+
+
+def variance_in_modes(R: Rows, q: float | None, ls: str, out_cnt: str) -> None:
+    """99.2 % of the variance in the first 10 modes (Sec. 5)."""
+    v = ("not measured" if q is None else "reproduced" if abs(q - 99.2) <= 0.5
+         else "same shape" if q >= 95 else "differs")
+    R.add(BP, "Sec. 5", "the first 10 modes cover 99.2 % of the variance", 99.2, q,
+          f"variance of the fitted deformations in the first 10 PCA modes, % ({ls} talker)",
+          out_cnt, v, "reproduced: within 0.5 percentage points; same shape: >= 95 %; differs: "
+          "otherwise", False)
+
+
+def table_1_cells(rec) -> dict[tuple[str, str], float]:
+    """Our Table 1 by the paper's definition: (view, covariance) -> MSE per DOF."""
+    cells: dict[tuple[str, str], float] = {}
+    if rec is not None:
+        paper_rows = rec[rec["paper_definition"].astype(str).str.lower().isin(["true", "1"])]
+        for _, row in paper_rows.iterrows():
+            cells[(str(row["view"]), str(row["covariance"]))] = float(
+                row["mse_per_dof_model_units2"])
+    return cells
+
+
+RATIOS = [  # Table 1's ratios and orderings (scale-free): statement, numerator, denominator
+    ("xy / yz, 10 modes (frontal against profile)", ("xy_all_points", "10_modes"),
+     ("yz_all_points", "10_modes")),
+    ("xy / yz, full covariance", ("xy_all_points", "full_covariance"),
+     ("yz_all_points", "full_covariance")),
+    ("xyz of 8 points / yz, 10 modes", ("xyz_8_points", "10_modes"),
+     ("yz_all_points", "10_modes")),
+    ("full covariance / 10 modes, xyz of 8 points", ("xyz_8_points", "full_covariance"),
+     ("xyz_8_points", "10_modes")),
+    ("full covariance / 10 modes, yz of all points", ("yz_all_points", "full_covariance"),
+     ("yz_all_points", "10_modes")),
+    ("full covariance / 10 modes, xy of all points", ("xy_all_points", "full_covariance"),
+     ("xy_all_points", "10_modes")),
+]
+
+
+def table_1_ratios(R: Rows, cells: dict, out_rec: str) -> None:
+    """Ratios of two Table 1 cells, ours against the paper's."""
+    for st, a, b in RATIOS:
         pv = BP_TABLE_1[a] / BP_TABLE_1[b]
         our = cells[a] / cells[b] if a in cells and b in cells and cells[b] > 0 else None
         if our is None:
@@ -75,39 +97,44 @@ def statements(R: Rows, inp: Inputs) -> None:
         R.add(BP, "Table 1", f"ratio {st}", pv, our, "ratio of two Table 1 cells (scale-free)",
               out_rec, v, "reproduced: within 1.5x; same shape: on the same side of 1; differs: "
               "otherwise", False)
+
+
+def _view_order(keys, error) -> str:
+    return " < ".join(BP_VIEW[k_[0]].split(" ")[0] + ("8" if "8" in k_[0] else "")
+                      for k_ in sorted(keys, key=error))
+
+
+def view_orderings(R: Rows, cells: dict, out_rec: str) -> None:
+    """The three views sorted by their error, for each covariance."""
     for cov in ("10_modes", "full_covariance"):
         keys = [(v_, cov) for v_ in ("yz_all_points", "xyz_8_points", "xy_all_points")]
-        paper_order = sorted(keys, key=lambda k_: BP_TABLE_1[k_])
         our = None
         if all(k_ in cells for k_ in keys):
-            our = " < ".join(BP_VIEW[k_[0]].split(" ")[0] + ("8" if "8" in k_[0] else "")
-                             for k_ in sorted(keys, key=lambda k_: cells[k_]))
-        pv = " < ".join(BP_VIEW[k_[0]].split(" ")[0] + ("8" if "8" in k_[0] else "")
-                        for k_ in paper_order)
+            our = _view_order(keys, lambda k_: cells[k_])
+        pv = _view_order(keys, lambda k_: BP_TABLE_1[k_])
         R.add(BP, "Table 1, Sec. 5", f"view ordering, {cov.replace('_', ' ')}", pv, our,
               "views sorted by their error (best first)", out_rec,
               "not measured" if our is None else "reproduced" if our == pv else "differs",
               RULE_EXACT, False)
-    # mesh and DOF counts
+
+
+def mesh_counts(R: Rows, counts, ls: str, out_cnt: str) -> None:
+    """The mesh's faces, nodes and DOF (Secs. 2.1, 4.1)."""
     wanted = [("triangles", "faces of the mesh", 336, "Sec. 2.1"),
               ("nodes", "nodes of the mesh", 204, "Sec. 2.1"),
               ("dof", "degrees of freedom (three per node)", 612, "Sec. 2.1"),
               ("constrained_dof", "constrained DOF (16 lip points x 3)", 48, "Sec. 4.1"),
               ("free_dof", "free DOF (columns of P)", 600, "Sec. 4.1")]
     for q_, st, pv, where in wanted:
-        our = None
-        if counts is not None:
-            sel = counts[counts["quantity"].astype(str) == q_]
-            if len(sel):
-                our = int(round(float(sel["our_value"].iloc[0])))
+        value = _count(counts, q_)
+        our = None if value is None else int(round(value))
         R.add(BP, where, st, pv, our, f"count on the {ls} talker's mesh", out_cnt,
               "not measured" if our is None else "reproduced" if our == pv else "differs",
               RULE_EXACT, True)
-    ds = None
-    if counts is not None:
-        sel = counts[counts["quantity"].astype(str) == "depth_share_test_frames"]
-        if len(sel):
-            ds = float(sel["our_value"].iloc[0])
+
+
+def depth_variation(R: Rows, ds: float | None, out_cnt: str) -> None:
+    """Significant depth variation in the test frames (Sec. 5)."""
     R.add(BP, "Sec. 5", "significant depth variation in the test frames",
           "significant", ds, "share of the depth (z) axis in the tracked points' displacement "
           "variance over the test frames", out_cnt,

@@ -92,80 +92,103 @@ def pivots(inp: Inputs, label: str) -> list[str] | None:
     return [str(m) for m in sel[label].fillna("").astype(str) if str(m)]
 
 
+PIVOT_MEASURE = "pivot order of the named markers in Table I's datasets"
+
+
 def table_i_text(R: Rows, inp: Inputs) -> None:
+    """The text's statements about Table I and the copied eyelid (Sec. IV), in its order."""
     cols = {lab: pivots(inp, lab) for lab in TABLE_I}
     have = {lab: c for lab, c in cols.items() if c}
-    measure = "pivot order of the named markers in Table I's datasets"
+    first_two_pivots(R, have)
+    s1_pivots_3_to_6(R, cols.get("S1"))
+    s2_pivots(R, {lab: have[lab] for lab in S2_LABELS if lab in have})
+    s1_last_pivot(R, inp)
+    s1_eyelid_coefficient(R, inp)
 
-    def n_a(statement, paper_value, rule):
-        R.add(LM, "Sec. IV, Table I", statement, paper_value, None, measure, "selected",
-              "not measured", rule, False)
 
+def _pivots_not_measured(R: Rows, statement: str, paper_value, rule: str) -> None:
+    R.add(LM, "Sec. IV, Table I", statement, paper_value, None, PIVOT_MEASURE, "selected",
+          "not measured", rule, False)
+
+
+def first_two_pivots(R: Rows, have: dict[str, list[str]]) -> None:
+    """40 first and 34 second in every dataset (``have``: each measured dataset's pivots)."""
     rule = "reproduced: every dataset; same shape: all but one; differs: otherwise"
-    if len(have) == len(TABLE_I):
-        firsts = [c[0] for c in have.values()]
-        hits = sum(f == "40" for f in firsts)
-        v = "reproduced" if hits == 5 else "same shape" if hits == 4 else "differs"
-        R.add(LM, "Sec. IV, Table I", "first pivot is 40 (lower-lip centre) in every dataset",
-              "40 in all 5", ", ".join(firsts), measure, "selected", v, rule, False)
-        seconds = [c[1] for c in have.values()]
-        hits = sum(s == "34" for s in seconds)
-        corner = sum(s in ("34", "38") for s in seconds)
-        v = ("reproduced" if hits == 5 else "same shape" if corner == 5 else "differs")
-        R.add(LM, "Sec. IV, Table I", "second pivot is 34 (left lip corner) in every dataset",
-              "34 in all 5", ", ".join(seconds), measure, "selected", v,
-              "reproduced: 34 in all five; same shape: a lip corner (34 or 38) in all five; "
-              "differs: otherwise", False)
-    else:
-        n_a("first pivot is 40 (lower-lip centre) in every dataset", "40 in all 5", rule)
-        n_a("second pivot is 34 (left lip corner) in every dataset", "34 in all 5", rule)
-    s1 = cols.get("S1")
+    if len(have) != len(TABLE_I):
+        _pivots_not_measured(R, "first pivot is 40 (lower-lip centre) in every dataset",
+                             "40 in all 5", rule)
+        _pivots_not_measured(R, "second pivot is 34 (left lip corner) in every dataset",
+                             "34 in all 5", rule)
+        return
+    firsts = [c[0] for c in have.values()]
+    hits = sum(f == "40" for f in firsts)
+    v = "reproduced" if hits == 5 else "same shape" if hits == 4 else "differs"
+    R.add(LM, "Sec. IV, Table I", "first pivot is 40 (lower-lip centre) in every dataset",
+          "40 in all 5", ", ".join(firsts), PIVOT_MEASURE, "selected", v, rule, False)
+    seconds = [c[1] for c in have.values()]
+    hits = sum(s == "34" for s in seconds)
+    corner = sum(s in ("34", "38") for s in seconds)
+    v = ("reproduced" if hits == 5 else "same shape" if corner == 5 else "differs")
+    R.add(LM, "Sec. IV, Table I", "second pivot is 34 (left lip corner) in every dataset",
+          "34 in all 5", ", ".join(seconds), PIVOT_MEASURE, "selected", v,
+          "reproduced: 34 in all five; same shape: a lip corner (34 or 38) in all five; "
+          "differs: otherwise", False)
+
+
+def s1_pivots_3_to_6(R: Rows, s1: list[str] | None) -> None:
+    """S1's pivots 3-6: right corner, right brow, upper lip, left brow."""
+    statement = "S1 pivots 3-6: right corner, right brow, upper lip, left brow"
     rule = ("reproduced: the same four markers at pivots 3-6; same shape: the same regions; "
             "differs: otherwise")
-    if s1:
-        ours = s1[2:6]
-        paper = ["38", "2", "36", "6"]
-        v = ("reproduced" if sorted(ours) == sorted(paper) else "same shape"
-             if sorted(map(region, ours)) == sorted(map(region, paper)) else "differs")
-        R.add(LM, "Sec. IV, Table I", "S1 pivots 3-6: right corner, right brow, upper lip, "
-              "left brow", "38, 2, 36, 6", ", ".join(ours), measure, "selected", v, rule, False)
-    else:
-        n_a("S1 pivots 3-6: right corner, right brow, upper lip, left brow", "38, 2, 36, 6",
-            rule)
-    s2 = {lab: have[lab] for lab in S2_LABELS if lab in have}
-    rule = ("reproduced: an eyelid marker (11 or 13) at pivot 3 in all four S2 datasets; same "
-            "shape: one among the first 6 in all four; differs: otherwise")
-    if len(s2) == 4:
-        pos = [min([c.index(m) + 1 for m in ("11", "13") if m in c] or [99]) for c in s2.values()]
-        v = ("reproduced" if all(p == 3 for p in pos) else "same shape"
-             if all(p <= 6 for p in pos) else "differs")
-        R.add(LM, "Sec. IV, Table I", "S2: an eyelid (13 or 11) third", "3, 3, 3, 3",
-              ", ".join(map(str, pos)), "pivot order of the first eyelid marker (11 or 13), "
-              "S2a, S2b, S2a*, S2b*", "selected", v, rule, False)
-        counts = [sum(m in LOWER_RIGHT for m in c[:8]) for c in s2.values()]
-        v = ("reproduced" if all(n >= 2 for n in counts) else "same shape"
-             if all(n >= 1 for n in counts) else "differs")
-        R.add(LM, "Sec. IV, Table I", "S2: lower-right face markers (42, 43, 47, 48, 56) early",
-              "3, 2, 3, 3", ", ".join(map(str, counts)),
-              "how many of 42, 43, 47, 48, 56 are among the first 8 pivots, S2a, S2b, S2a*, "
-              "S2b*", "selected",
-              v, "reproduced: at least 2 in each S2 dataset; same shape: at least 1 in each; "
-              "differs: otherwise", False)
-        pos = [c.index("36") + 1 if "36" in c else 99 for c in s2.values()]
-        v = ("reproduced" if all(8 <= p <= 10 for p in pos) else "same shape"
-             if all(5 <= p <= 13 for p in pos) else "differs")
-        R.add(LM, "Sec. IV, Table I", "S2: the upper-lip marker (36) appears later, 8th-10th",
-              "10, 8, 9, 10", ", ".join(map(str, pos)),
-              "pivot order of 36 in S2a, S2b, S2a*, S2b*", "selected", v,
-              "reproduced: 8th-10th in all four; same shape: 5th-13th in all four; differs: "
-              "otherwise", False)
-    else:
+    if not s1:
+        _pivots_not_measured(R, statement, "38, 2, 36, 6", rule)
+        return
+    ours = s1[2:6]
+    paper = ["38", "2", "36", "6"]
+    v = ("reproduced" if sorted(ours) == sorted(paper) else "same shape"
+         if sorted(map(region, ours)) == sorted(map(region, paper)) else "differs")
+    R.add(LM, "Sec. IV, Table I", statement, "38, 2, 36, 6", ", ".join(ours), PIVOT_MEASURE,
+          "selected", v, rule, False)
+
+
+def s2_pivots(R: Rows, s2: dict[str, list[str]]) -> None:
+    """S2: an eyelid third, the lower-right face early, the upper lip (36) 8th-10th."""
+    if len(s2) != 4:
         for st, pv in (("S2: an eyelid (13 or 11) third", "3, 3, 3, 3"),
                        ("S2: lower-right face markers (42, 43, 47, 48, 56) early", "3, 2, 3, 3"),
                        ("S2: the upper-lip marker (36) appears later, 8th-10th",
                         "10, 8, 9, 10")):
-            n_a(st, pv, "see the statement")
-    # S1: the last pivot is 13, the copied eyelid
+            _pivots_not_measured(R, st, pv, "see the statement")
+        return
+    pos = [min([c.index(m) + 1 for m in ("11", "13") if m in c] or [99]) for c in s2.values()]
+    v = ("reproduced" if all(p == 3 for p in pos) else "same shape"
+         if all(p <= 6 for p in pos) else "differs")
+    R.add(LM, "Sec. IV, Table I", "S2: an eyelid (13 or 11) third", "3, 3, 3, 3",
+          ", ".join(map(str, pos)), "pivot order of the first eyelid marker (11 or 13), "
+          "S2a, S2b, S2a*, S2b*", "selected", v,
+          "reproduced: an eyelid marker (11 or 13) at pivot 3 in all four S2 datasets; same "
+          "shape: one among the first 6 in all four; differs: otherwise", False)
+    counts = [sum(m in LOWER_RIGHT for m in c[:8]) for c in s2.values()]
+    v = ("reproduced" if all(n >= 2 for n in counts) else "same shape"
+         if all(n >= 1 for n in counts) else "differs")
+    R.add(LM, "Sec. IV, Table I", "S2: lower-right face markers (42, 43, 47, 48, 56) early",
+          "3, 2, 3, 3", ", ".join(map(str, counts)),
+          "how many of 42, 43, 47, 48, 56 are among the first 8 pivots, S2a, S2b, S2a*, "
+          "S2b*", "selected",
+          v, "reproduced: at least 2 in each S2 dataset; same shape: at least 1 in each; "
+          "differs: otherwise", False)
+    pos = [c.index("36") + 1 if "36" in c else 99 for c in s2.values()]
+    v = ("reproduced" if all(8 <= p <= 10 for p in pos) else "same shape"
+         if all(5 <= p <= 13 for p in pos) else "differs")
+    R.add(LM, "Sec. IV, Table I", "S2: the upper-lip marker (36) appears later, 8th-10th",
+          "10, 8, 9, 10", ", ".join(map(str, pos)),
+          "pivot order of 36 in S2a, S2b, S2a*, S2b*", "selected", v,
+          "reproduced: 8th-10th in all four; same shape: 5th-13th in all four; differs: "
+          "otherwise", False)
+
+
+def s1_last_pivot(R: Rows, inp: Inputs) -> None:
+    """S1: the last pivot is 13, the copied eyelid."""
     rv = get(inp.r_values, "S1")
     rule = ("reproduced: 13 last; same shape: 11 last (13 and 11 are identical where 13 was "
             "copied, so which of the two QR meets second is a tie); differs: otherwise")
@@ -179,6 +202,10 @@ def table_i_text(R: Rows, inp: Inputs) -> None:
         R.add(LM, "Sec. IV", "S1: the last selected marker is 13 (left upper eyelid)",
               "13 (eyelids)", None, "last pivot of S1", "r_values:S1", "not measured", rule,
               True)
+
+
+def s1_eyelid_coefficient(R: Rows, inp: Inputs) -> None:
+    """S1: the copied eyelid 13 is 1 x its source 11 in X = R11^-1 R12 (basis of ten)."""
     X = get(inp.coefficients_k10, "S1")
     rule = ("reproduced: 13 secondary with a coefficient within 0.05 of 1 on main marker 11; "
             "same shape: the same within 0.2, or 11 secondary on main marker 13 within 0.05 "
@@ -197,14 +224,14 @@ def table_i_text(R: Rows, inp: Inputs) -> None:
     if coef is None:
         R.add(LM, "Sec. IV, Fig. 4", statement, 1.0, None, measure, "coefficients:S1",
               "not measured", rule, True)
+        return
+    d = abs(coef - 1.0)
+    if orient == "13 on 11":
+        v = "reproduced" if d <= 0.05 else "same shape" if d <= 0.2 else "differs"
     else:
-        d = abs(coef - 1.0)
-        if orient == "13 on 11":
-            v = "reproduced" if d <= 0.05 else "same shape" if d <= 0.2 else "differs"
-        else:
-            v = "same shape" if d <= 0.05 else "differs"
-        R.add(LM, "Sec. IV, Fig. 4", statement, "1 (13 on 11)", f"{coef:.3f} ({orient})",
-              measure, "coefficients:S1", v, rule, True)
+        v = "same shape" if d <= 0.05 else "differs"
+    R.add(LM, "Sec. IV, Fig. 4", statement, "1 (13 on 11)", f"{coef:.3f} ({orient})",
+          measure, "coefficients:S1", v, rule, True)
 
 
 def fig2(R: Rows, inp: Inputs) -> None:

@@ -33,7 +33,9 @@ import itertools
 import math
 import os
 from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib import colormaps
@@ -59,6 +61,9 @@ from facemotion.plots.facemap import (
     interpolate_field,
     label_index,
 )
+
+if TYPE_CHECKING:
+    from facemotion.ingest.displacements import Displacements
 
 SURFACE_CMAP = "YlOrBr"  # colour-blind-safe sequential map for |displacement|, light at 0
 FIGSIZE = (8.0, 4.6)  # inches; at DPI 100 -> 800 x 460 pixels (even, as libx264 needs)
@@ -262,6 +267,32 @@ class _Renderer:
                  figsize=FIGSIZE, dpi=DPI, axes_visible=True):
         self.neutral, self.labels, self.main_idx = neutral, labels, main_idx
         self.rest_idx = np.setdiff1d(np.arange(len(labels)), main_idx)
+        self._surface_quads(neutral, grid_n)
+        self.fig = Figure(figsize=figsize, dpi=dpi)
+        self.canvas = FigureCanvasAgg(self.fig)
+        self.norm = Normalize(0.0, vmax)
+        self.cmap = colormaps[SURFACE_CMAP]
+        # the colormap's N colours, then its colour above the range (see _colour)
+        self._table = np.vstack([self.cmap(np.arange(self.cmap.N)), self.cmap([np.inf])])
+        k = len(main_idx)
+        titles = ("measured", f"model from the k = {k} main markers (red)")
+        self.axes, self.polys, self.dots, self.mains = [], [], [], []
+        for p in range(2):
+            self._add_panel(p, titles[p], view, limits, axes_visible)
+        cax = self.fig.add_axes((0.91, 0.18, 0.015, 0.6))
+        cb = self.fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), cax=cax)
+        cb.set_label("|displacement| (mm)", fontsize=8)
+        cb.ax.tick_params(labelsize=7)
+        self.suptitle = self.fig.suptitle("", fontsize=9.5, y=0.985, va="top")
+        self._title_font = None  # Pillow's copy of the suptitle's font, loaded on first use
+        self.dynamic = [*self.polys, *self.dots, *self.mains, self.suptitle]
+        self._render_static()
+        self._scenes = None  # the frame's geometry and colours, set by draw()
+        self._artists_current = False
+
+    def _surface_quads(self, neutral: np.ndarray, grid_n: int) -> None:
+        """The surface's interpolator and the quads of its grid that are drawn, with their
+        corners' rows among the grid points used and those points' weights."""
         self.surface = _SurfaceInterpolator(neutral, grid_n)
         # Quads of the grid with all four corners inside the markers' hull: fixed, because the
         # grid lives in neutral (x, y) coordinates.
@@ -276,72 +307,60 @@ class _Renderer:
         used, self._corner = np.unique(flat, return_inverse=True)
         self._corner = self._corner.reshape(flat.shape)
         self._weights = self.surface.W.reshape(grid_n * grid_n, -1)[used]
-        self.fig = Figure(figsize=figsize, dpi=dpi)
-        self.canvas = FigureCanvasAgg(self.fig)
-        self.norm = Normalize(0.0, vmax)
-        self.cmap = colormaps[SURFACE_CMAP]
-        # the colormap's N colours, then its colour above the range (see _colour)
-        self._table = np.vstack([self.cmap(np.arange(self.cmap.N)), self.cmap([np.inf])])
-        k = len(main_idx)
-        titles = ("measured", f"model from the k = {k} main markers (red)")
-        self.axes, self.polys, self.dots, self.mains = [], [], [], []
+
+    def _add_panel(self, p: int, title: str, view, limits, axes_visible: bool) -> None:
+        """Panel p (0 measured, 1 model): a 3-D axes with the fixed view and limits, its
+        surface and its two marker lines (secondary, main)."""
         (xl, yl, zl) = limits
-        for p in range(2):
-            # panels kept clear of the figure's edges so the axis labels are not cut off
-            ax = self.fig.add_axes((0.01 + 0.44 * p, 0.03, 0.44, 0.86), projection="3d",
-                                   computed_zorder=False)
-            ax.set_title(titles[p], fontsize=10, pad=2)
-            ax.view_init(elev=view[0], azim=view[1])
-            ax.set_xlim(*xl)
-            ax.set_ylim(-zl[1], -zl[0])
-            ax.set_zlim(*yl)
-            ax.set_box_aspect((xl[1] - xl[0], zl[1] - zl[0], yl[1] - yl[0]))
-            if axes_visible:
-                ax.set_xlabel("x (mm)", fontsize=7, labelpad=-6)
-                ax.set_ylabel("z (mm)", fontsize=7, labelpad=-6)
-                ax.set_zlabel("y (mm)", fontsize=7, labelpad=0)
-                ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{-v + 0.0:g}"))
-                ax.xaxis.set_major_locator(MaxNLocator(4))
-                ax.zaxis.set_major_locator(MaxNLocator(4))
-                # depth is seen nearly end-on: two ticks, or their labels collide
-                ax.yaxis.set_major_locator(MaxNLocator(2))
-                ax.tick_params(labelsize=6, pad=-3)
-                ax.zaxis.set_tick_params(pad=2)  # clear of the tick marks: keep the minus signs
-            else:
-                ax.set_axis_off()
-            poly = Poly3DCollection(np.zeros((len(self.quads), 4, 3)), linewidths=0,
-                                    antialiased=False, zorder=1)
-            ax.add_collection3d(poly, autolim=False)
-            (dots,) = ax.plot([], [], [], ls="none", marker="o", ms=1.8, color=MARKER_COLOUR,
-                              mew=0, zorder=2)
-            (mains,) = ax.plot([], [], [], ls="none", marker="o", ms=4.5, color=MAIN_COLOUR,
-                               mec="white", mew=0.5, zorder=3)
-            self.axes.append(ax)
-            self.polys.append(poly)
-            self.dots.append(dots)
-            self.mains.append(mains)
-        cax = self.fig.add_axes((0.91, 0.18, 0.015, 0.6))
-        cb = self.fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), cax=cax)
-        cb.set_label("|displacement| (mm)", fontsize=8)
-        cb.ax.tick_params(labelsize=7)
-        self.suptitle = self.fig.suptitle("", fontsize=9.5, y=0.985, va="top")
-        self._title_font = None  # Pillow's copy of the suptitle's font, loaded on first use
-        self.dynamic = [*self.polys, *self.dots, *self.mains, self.suptitle]
+        # panels kept clear of the figure's edges so the axis labels are not cut off
+        ax = self.fig.add_axes((0.01 + 0.44 * p, 0.03, 0.44, 0.86), projection="3d",
+                               computed_zorder=False)
+        ax.set_title(title, fontsize=10, pad=2)
+        ax.view_init(elev=view[0], azim=view[1])
+        ax.set_xlim(*xl)
+        ax.set_ylim(-zl[1], -zl[0])
+        ax.set_zlim(*yl)
+        ax.set_box_aspect((xl[1] - xl[0], zl[1] - zl[0], yl[1] - yl[0]))
+        if axes_visible:
+            ax.set_xlabel("x (mm)", fontsize=7, labelpad=-6)
+            ax.set_ylabel("z (mm)", fontsize=7, labelpad=-6)
+            ax.set_zlabel("y (mm)", fontsize=7, labelpad=0)
+            ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{-v + 0.0:g}"))
+            ax.xaxis.set_major_locator(MaxNLocator(4))
+            ax.zaxis.set_major_locator(MaxNLocator(4))
+            # depth is seen nearly end-on: two ticks, or their labels collide
+            ax.yaxis.set_major_locator(MaxNLocator(2))
+            ax.tick_params(labelsize=6, pad=-3)
+            ax.zaxis.set_tick_params(pad=2)  # clear of the tick marks: keep the minus signs
+        else:
+            ax.set_axis_off()
+        poly = Poly3DCollection(np.zeros((len(self.quads), 4, 3)), linewidths=0,
+                                antialiased=False, zorder=1)
+        ax.add_collection3d(poly, autolim=False)
+        (dots,) = ax.plot([], [], [], ls="none", marker="o", ms=1.8, color=MARKER_COLOUR,
+                          mew=0, zorder=2)
+        (mains,) = ax.plot([], [], [], ls="none", marker="o", ms=4.5, color=MAIN_COLOUR,
+                           mec="white", mew=0.5, zorder=3)
+        self.axes.append(ax)
+        self.polys.append(poly)
+        self.dots.append(dots)
+        self.mains.append(mains)
+
+    def _render_static(self) -> None:
+        """Draw everything but the moving parts once, keep it as the background, and fix each
+        panel's projection, data -> pixel map, clip box and marker styles."""
         for a in self.dynamic:
             a.set_visible(False)
         self.canvas.draw()
         self.background = self.canvas.copy_from_bbox(self.fig.bbox)
         for a in self.dynamic:
             a.set_visible(True)
-        # Fixed after the static draw: each panel's projection, data -> pixel map and clip box.
         renderer = self.canvas.get_renderer()
         self._proj = [(ax.M.copy(), ax.transData.get_affine().get_matrix().copy())
                       for ax in self.axes]
         self._clip = [self._pixel_clip(poly, renderer) for poly in self.polys]
         self._markers = [[self._marker_style(line, renderer)
                           for line in (self.dots[p], self.mains[p])] for p in range(2)]
-        self._scenes = None  # the frame's geometry and colours, set by draw()
-        self._artists_current = False
 
     @staticmethod
     def _pixel_clip(artist, renderer) -> tuple[int, int, int, int]:
@@ -615,6 +634,40 @@ def frame_indices(n_frames: int, rate: float, fps: float) -> tuple[np.ndarray, f
         raise InputError(f"animation: rate ({rate}) and fps ({fps}) must be positive")
     step = max(1, math.ceil(rate / fps - 1e-9))
     return np.arange(0, n_frames, step), rate / step
+
+
+@dataclass
+class HeldoutClip:
+    """Held-out sentences to animate: measured and model displacements (T, n, 3) of the frames
+    kept at the output rate ``fps``, and each frame's caption."""
+
+    measured: np.ndarray
+    model: np.ndarray
+    captions: list[str]
+    fps: float
+
+    @property
+    def largest_motion(self) -> int:
+        """The frame whose markers are displaced most (sum of |x|, |y|, |z| over markers):
+        the still."""
+        return int(np.argmax(np.abs(self.measured).sum(axis=(1, 2))))
+
+
+def heldout_clip(part: Displacements, predicted: np.ndarray, fps: float, label: str
+                 ) -> HeldoutClip:
+    """The held-out sentences ``part`` and the model's prediction of them (rows as in A),
+    subsampled to at most ``fps`` (:func:`frame_indices`); each frame's caption names the
+    dataset ``label``, its sentence, its frame there and the time in the sentence."""
+    n = len(part.labels)
+    measured = part.A.reshape(-1, 3, n).transpose(0, 2, 1)
+    model = predicted.reshape(-1, 3, n).transpose(0, 2, 1)
+    idx, out_fps = frame_indices(measured.shape[0], part.rate, fps)
+    sent = part.row_sentence[::3][idx]
+    frame = part.row_frame[::3][idx]
+    n_in = {s: int(np.sum(part.row_sentence[::3] == s)) for s in set(sent.tolist())}
+    captions = [f"{label}: held-out sentence {part.sentences[s]}, frame {f + 1} of "
+                f"{n_in[s]} (t = {f / part.rate:.2f} s)" for s, f in zip(sent, frame, strict=True)]
+    return HeldoutClip(measured[idx], model[idx], captions, out_fps)
 
 
 def _as_frames(frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:

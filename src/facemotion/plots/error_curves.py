@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -63,14 +64,50 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
                    "error curves")
     fig = Figure(figsize=(10.0, 4.4))
     ax_abs, ax_rel = fig.subplots(1, 2)
-    extras_used = []
-    zero_k: list[str] = []
-    all_main: dict[int, list[str]] = {}
-    pooled = False
+    drawn = _draw_curves(ax_abs, ax_rel, df_by_dataset, n_markers)
+    ax_abs.set_yscale("log")
+    notes = []
+    if drawn.all_main:
+        notes.append("k = n not drawn (every marker is main, none is left to predict: the "
+                     "error is undefined): " + "; ".join(
+                         f"n = {n} ({', '.join(names)})" for n, names in drawn.all_main.items()))
+    if drawn.zero_k:
+        notes.append("(numerically) zero error, not on the log axis: " + "; ".join(drawn.zero_k))
+    note_lines = sum(n.count("\n") + 1 for n in notes)
+    if notes:
+        fig.supxlabel("\n".join(notes), fontsize=7.5, color="0.3")
+    _label_panels(ax_abs, ax_rel)
+    _legends(ax_abs, ax_rel, drawn.extras_used, drawn.pooled)
+    fig.suptitle("Held-out prediction error of the secondary markers from k main markers")
+    # fixed layout (inches): the titles above, the notes under the panels (0.15 in a line),
+    # the y axes' measured tick labels and labels left of each panel
+    margins = {"right": 0.12, "top": 0.52,
+               "bottom": 0.48 + (0.05 + 0.15 * note_lines if note_lines else 0.0)}
+    fixed_layout(fig, left=0.6, wgap=0.96, **margins)
+    fixed_layout(fig, left=yaxis_width(ax_abs) + 0.05, wgap=yaxis_width(ax_rel) + 0.2,
+                 **margins)
+    ticks_in_view(ax_abs, ax_rel)
+    return fig
+
+
+@dataclass
+class _Drawn:
+    """What the curves drawn leave for the notes and legends."""
+
+    extras_used: list[str] = field(default_factory=list)
+    zero_k: list[str] = field(default_factory=list)
+    all_main: dict[int, list[str]] = field(default_factory=dict)
+    pooled: bool = False
+
+
+def _draw_curves(ax_abs, ax_rel, df_by_dataset: Mapping[str, pd.DataFrame],
+                 n_markers: Mapping[str, int] | None) -> _Drawn:
+    """Each dataset's absolute (left) and relative (right) error against k."""
+    drawn = _Drawn()
     for d, (name, df) in enumerate(df_by_dataset.items()):
         df, n_dropped = without_all_main(df, (n_markers or {}).get(name))
         if n_dropped is not None:
-            all_main.setdefault(n_dropped, []).append(str(name))
+            drawn.all_main.setdefault(n_dropped, []).append(str(name))
         c, m = colour(d), MARKERS[d % len(MARKERS)]
         # log axis: an error below 1e-9 of the largest is numerically zero (an exact copy)
         tiny = 1e-9 * float(df["mean_abs_error_mm"].max()) if len(df) else 0.0
@@ -80,27 +117,21 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
             if col in df.columns and df[col].notna().any():
                 ax_abs.plot(df["k"], df[col].where(df[col] > 1e-9 * df[col].max()), color=c,
                             ls=ls, lw=0.9)
-                if col not in extras_used:
-                    extras_used.append(col)
+                if col not in drawn.extras_used:
+                    drawn.extras_used.append(col)
         ax_rel.plot(df["k"], df["rel_error_per_marker"], color=c, marker=m, ms=3.5, lw=1.4,
                     label=name)
         if "rel_error_pooled" in df.columns:
             ax_rel.plot(df["k"], df["rel_error_pooled"], color=c, ls=":", lw=0.9)
-            pooled = True
+            drawn.pooled = True
         zk = df.loc[df["mean_abs_error_mm"] <= tiny, "k"]
         if len(zk):
-            zero_k.append(f"{name}: k = {', '.join(str(int(v)) for v in zk)}")
-    ax_abs.set_yscale("log")
-    notes = []
-    if all_main:
-        notes.append("k = n not drawn (every marker is main, none is left to predict: the "
-                     "error is undefined): " + "; ".join(
-                         f"n = {n} ({', '.join(names)})" for n, names in all_main.items()))
-    if zero_k:
-        notes.append("(numerically) zero error, not on the log axis: " + "; ".join(zero_k))
-    note_lines = sum(n.count("\n") + 1 for n in notes)
-    if notes:
-        fig.supxlabel("\n".join(notes), fontsize=7.5, color="0.3")
+            drawn.zero_k.append(f"{name}: k = {', '.join(str(int(v)) for v in zk)}")
+    return drawn
+
+
+def _label_panels(ax_abs, ax_rel) -> None:
+    """Axis labels, titles, the relative error in %, integer k, grids."""
     ax_abs.set(xlabel="k (number of main markers)",
                ylabel="held-out 3-D error (mm, log scale)")
     set_title(ax_abs, "Absolute error (paper Fig. 10 top)")
@@ -113,6 +144,10 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
     for ax in (ax_abs, ax_rel):
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(True, which="major", alpha=0.3)
+
+
+def _legends(ax_abs, ax_rel, extras_used: list[str], pooled: bool) -> None:
+    """The datasets, with the line styles of the extra statistics and the pooled ratio."""
     handles, names = ax_abs.get_legend_handles_labels()
     style = [Line2D([], [], color="0.3", lw=1.4, label="mean")] if extras_used else []
     style += [Line2D([], [], color="0.3", lw=0.9, ls=_EXTRA[c][1], label=_EXTRA[c][0])
@@ -124,16 +159,6 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
         handles.append(Line2D([], [], color="0.3", lw=0.9, ls=":"))
         names.append("pooled: sum |error| / sum |displacement|")
     ax_rel.legend(handles=handles, labels=names, fontsize=8)
-    fig.suptitle("Held-out prediction error of the secondary markers from k main markers")
-    # fixed layout (inches): the titles above, the notes under the panels (0.15 in a line),
-    # the y axes' measured tick labels and labels left of each panel
-    margins = {"right": 0.12, "top": 0.52,
-               "bottom": 0.48 + (0.05 + 0.15 * note_lines if note_lines else 0.0)}
-    fixed_layout(fig, left=0.6, wgap=0.96, **margins)
-    fixed_layout(fig, left=yaxis_width(ax_abs) + 0.05, wgap=yaxis_width(ax_rel) + 0.2,
-                 **margins)
-    ticks_in_view(ax_abs, ax_rel)
-    return fig
 
 
 def plot_trajectory(time_s, measured, predicted, marker: str, sentence: str, k: int,

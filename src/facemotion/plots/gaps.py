@@ -45,28 +45,12 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
                          f"(frames, markers) = {shape}")
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     flagged = missing | filled
-    any_flag = flagged.any(axis=0)
-    if len(labels) > max_all:
-        show = np.flatnonzero(any_flag)
-    else:
-        show = np.arange(len(labels))
-    n_flagged_shown = show.size
-    if show.size > max_rows:
-        counts = flagged[:, show].sum(axis=0)
-        top = np.argsort(-counts, kind="stable")[:max_rows]
-        show = np.sort(show[top])
-    hidden = len(labels) - show.size
+    show, n_flagged_shown = rows_shown(flagged, len(labels) > max_all, max_rows)
     nrows = max(show.size, 1)
     fig = Figure(figsize=(10.0, min(2.2 + 0.16 * nrows, 14.0)))
     ax = fig.subplots()
     only_missing = missing & ~filled
-    for row, j in enumerate(show):
-        for mask, c in ((only_missing[:, j], MISSING_COLOUR), (filled[:, j], FILLED_COLOUR)):
-            r = runs(mask)
-            if r:
-                bars = [(t[a], t[b - 1] + dt - t[a]) for a, b in r]
-                ax.broken_barh(bars, (row - 0.4, 0.8), facecolors=c, edgecolors=c,
-                               linewidths=0.4, gid="missing" if c == MISSING_COLOUR else "filled")
+    _draw_runs(ax, t, dt, only_missing, filled, show)
     if sentence_bounds is not None:
         for b in np.asarray(sentence_bounds, dtype=float):
             ax.axvline(b, color="0.6", lw=0.6, alpha=0.6, zorder=0)
@@ -77,17 +61,7 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
         ax.set_xlim(t[0], t[-1] + dt)
     ax.set_xlabel("time (s, sentences concatenated)")
     ax.set_ylabel("marker")
-    n_miss, n_fill = int(only_missing.sum()), int(filled.sum())
-    frac = flagged.sum() / max(flagged.size, 1)
-    title = (f"Missing and filled samples: {n_fill} filled, {n_miss} left missing "
-             f"({100 * frac:.2f}% of {flagged.size} samples)")
-    if n_flagged_shown > show.size:
-        title += (f"\nthe {show.size} markers with the most flagged samples are shown, of "
-                  f"{int(any_flag.sum())} with any; all {len(labels)} are in the gap report "
-                  "table")
-    elif hidden and show.size:
-        title += (f"\nonly the {show.size} markers with flagged samples are shown; "
-                  f"{hidden} markers with no missing samples not shown")
+    title = _title(only_missing, filled, show, n_flagged_shown, len(labels))
     if show.size == 0:
         ax.text(0.5, 0.5, f"no missing or filled samples in any of the {len(labels)} markers",
                 transform=ax.transAxes, ha="center", va="center")
@@ -106,3 +80,47 @@ def plot_gaps(time_s, missing, filled, labels: Sequence[str], sentence_bounds=No
     fixed_layout(fig, left=yaxis_width(ax) + pad, **margins)
     ticks_in_view(ax)
     return fig
+
+
+def rows_shown(flagged: np.ndarray, flagged_only: bool, max_rows: int) -> tuple[np.ndarray, int]:
+    """The markers given a row (all, or with ``flagged_only`` those with a flagged sample; at
+    most ``max_rows``: the most flagged, in label order) and how many were eligible."""
+    show = np.flatnonzero(flagged.any(axis=0)) if flagged_only else np.arange(flagged.shape[1])
+    eligible = show.size
+    if show.size > max_rows:
+        counts = flagged[:, show].sum(axis=0)
+        top = np.argsort(-counts, kind="stable")[:max_rows]
+        show = np.sort(show[top])
+    return show, eligible
+
+
+def _draw_runs(ax, t: np.ndarray, dt: float, only_missing: np.ndarray, filled: np.ndarray,
+               show: np.ndarray) -> None:
+    """One bar per run of missing (red) or filled (blue) samples, a row per shown marker."""
+    for row, j in enumerate(show):
+        for mask, c in ((only_missing[:, j], MISSING_COLOUR), (filled[:, j], FILLED_COLOUR)):
+            r = runs(mask)
+            if r:
+                bars = [(t[a], t[b - 1] + dt - t[a]) for a, b in r]
+                ax.broken_barh(bars, (row - 0.4, 0.8), facecolors=c, edgecolors=c,
+                               linewidths=0.4, gid="missing" if c == MISSING_COLOUR else "filled")
+
+
+def _title(only_missing: np.ndarray, filled: np.ndarray, show: np.ndarray,
+           n_flagged_shown: int, n_labels: int) -> str:
+    """The counts of filled and missing samples, and which markers the rows show."""
+    flagged = only_missing | filled
+    any_flag = flagged.any(axis=0)
+    hidden = n_labels - show.size
+    n_miss, n_fill = int(only_missing.sum()), int(filled.sum())
+    frac = flagged.sum() / max(flagged.size, 1)
+    title = (f"Missing and filled samples: {n_fill} filled, {n_miss} left missing "
+             f"({100 * frac:.2f}% of {flagged.size} samples)")
+    if n_flagged_shown > show.size:
+        title += (f"\nthe {show.size} markers with the most flagged samples are shown, of "
+                  f"{int(any_flag.sum())} with any; all {n_labels} are in the gap report "
+                  "table")
+    elif hidden and show.size:
+        title += (f"\nonly the {show.size} markers with flagged samples are shown; "
+                  f"{hidden} markers with no missing samples not shown")
+    return title

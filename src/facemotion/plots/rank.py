@@ -49,8 +49,44 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     require_tables(tables, ("order", "marker", column), "r values")
     fig = Figure(figsize=(7.0, 4.6))
     ax = fig.subplots()
+    n_max, lows, zeros, candidates = _draw_curves(ax, tables, column, annotate_below,
+                                                  max_annotations)
+    ax.set_yscale("log")
+    for t in sorted(tolerances):
+        ax.axhline(t, color="0.35", ls="--", lw=0.8, zorder=0)
+        ax.annotate(f"ε = {t:g} mm", (0.0, t), xycoords=("axes fraction", "data"),
+                    xytext=(3, 2), textcoords="offset points", ha="left", va="bottom",
+                    fontsize=7.5, color="0.3")
+    if lows:
+        # room under the lowest point for the labels of the last pivots
+        ax.set_ylim(bottom=min(min(lows), min(tolerances, default=1.0)) / 4)
+    if zeros:
+        fig.supxlabel("numerically 0 (not on the log axis): " + "; ".join(zeros),
+                      fontsize=7.5, color="0.3")
+    ax.set_xlim(0.5, n_max + 0.5)
+    ax.set_xlabel("pivot order (marker selected at step i of QR with column pivoting)")
+    ax.set_ylabel(_y_label(tables, column))
+    set_title(ax, "Independent motion of each pivot marker (diagonal of R)")
+    ax.grid(True, which="major", alpha=0.3)
+    plain_log_labels(ax.yaxis)
+    legend = ax.legend(fontsize=8, loc="upper right")
+    # fixed layout (inches): the title above, the note line under the axes, the measured y
+    # tick labels and label on the left (before the labels that must stay inside the axes)
+    margins = {"right": 0.1, "top": 0.25, "bottom": 0.48 + (0.2 if zeros else 0.0)}
+    fixed_layout(fig, left=0.85, **margins)
+    fixed_layout(fig, left=yaxis_width(ax) + 0.05, **margins)
+    ticks_in_view(ax)
+    texts = _label_last_pivots(ax, candidates, n_max)
+    keep_legible(fig, texts, inside=ax, avoid=[legend, *ax.texts[:len(tolerances)]])
+    return fig
+
+
+def _draw_curves(ax, tables: Mapping[str, pd.DataFrame], column: str, annotate_below: float,
+                 max_annotations: int) -> tuple[int, list[float], list[str], list[list[tuple]]]:
+    """Each dataset's |r_kk| against pivot order; the largest order, each dataset's smallest
+    positive value, the numerically-zero pivots' note, and the pivots to label."""
     n_max = 1
-    lows = []
+    lows: list[float] = []
     zeros: list[str] = []
     candidates: list[list[tuple]] = []
     for d, (name, df) in enumerate(tables.items()):
@@ -72,40 +108,23 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
         per_dataset = max_annotations if len(tables) <= 2 else 1
         below = np.flatnonzero((r < annotate_below) & positive)[-per_dataset:][::-1]
         candidates.append([(i, order[i], r[i], markers[i], c) for i in below])
-    ax.set_yscale("log")
-    for t in sorted(tolerances):
-        ax.axhline(t, color="0.35", ls="--", lw=0.8, zorder=0)
-        ax.annotate(f"ε = {t:g} mm", (0.0, t), xycoords=("axes fraction", "data"),
-                    xytext=(3, 2), textcoords="offset points", ha="left", va="bottom",
-                    fontsize=7.5, color="0.3")
-    if lows:
-        # room under the lowest point for the labels of the last pivots
-        ax.set_ylim(bottom=min(min(lows), min(tolerances, default=1.0)) / 4)
-    if zeros:
-        fig.supxlabel("numerically 0 (not on the log axis): " + "; ".join(zeros),
-                      fontsize=7.5, color="0.3")
-    ax.set_xlim(0.5, n_max + 0.5)
-    ax.set_xlabel("pivot order (marker selected at step i of QR with column pivoting)")
+    return n_max, lows, zeros, candidates
+
+
+def _y_label(tables: Mapping[str, pd.DataFrame], column: str) -> str:
+    """The y label of the tables' R normalisation (two lines when long)."""
     norms = {str(v) for df in tables.values() if "r_normalisation" in df.columns
              for v in df["r_normalisation"].unique()}
     ylabel = (_NORM_LABEL.get(norms.pop(), column) if len(norms) == 1
               else f"{column} (mm, log scale)")
     if len(ylabel) > 40:  # two lines: one is longer than the axes are high
         ylabel = ylabel.replace(" (", "\n(", 1)
-    ax.set_ylabel(ylabel)
-    set_title(ax, "Independent motion of each pivot marker (diagonal of R)")
-    ax.grid(True, which="major", alpha=0.3)
-    plain_log_labels(ax.yaxis)
-    legend = ax.legend(fontsize=8, loc="upper right")
-    # fixed layout (inches): the title above, the note line under the axes, the measured y
-    # tick labels and label on the left (before the labels that must stay inside the axes)
-    margins = {"right": 0.1, "top": 0.25, "bottom": 0.48 + (0.2 if zeros else 0.0)}
-    fixed_layout(fig, left=0.85, **margins)
-    fixed_layout(fig, left=yaxis_width(ax) + 0.05, **margins)
-    ticks_in_view(ax)
-    # Labels of the last pivots below ``annotate_below``: below-left of a point near the right
-    # edge, above-right of the others (where a falling curve leaves room); datasets in turn;
-    # kept only where legible.
+    return ylabel
+
+
+def _label_last_pivots(ax, candidates: list[list[tuple]], n_max: int) -> list:
+    """Labels of the last pivots below ``annotate_below``: below-left of a point near the right
+    edge, above-right of the others (where a falling curve leaves room); datasets in turn."""
     texts = []
     for rank_j in range(max((len(c) for c in candidates), default=0)):
         for cands in candidates:
@@ -120,5 +139,4 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
                     path_effects=HALO,
                     arrowprops={"arrowstyle": "-", "color": c, "lw": 0.6,
                                 "shrinkA": 0, "shrinkB": 2}))
-    keep_legible(fig, texts, inside=ax, avoid=[legend, *ax.texts[:len(tolerances)]])
-    return fig
+    return texts

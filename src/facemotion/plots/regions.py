@@ -123,21 +123,9 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
     suptitle_lines = suptitle.count("\n") + 1
     height = 3.0 * nrows + 0.6 + 0.3 * (suptitle_lines - 1)
     fig = Figure(figsize=(width, height))
-    # A fixed layout in inches (matplotlib's constrained layout measured every tick label of
-    # every panel in two passes: half of the figure's cost): room on the left for the y tick
-    # labels and label, below for the x ones (and the legend), above for the suptitle and the
-    # panel titles, on the right for the colour bar.
-    left, right, bottom = 0.75, 1.1, 0.62 + (0.22 if any_negative else 0.0)
-    top = 0.22 + 0.24 * suptitle_lines + 0.3
-    # not shared: every panel gets the same limits (setup_frontal), and an inner panel's hidden
-    # tick labels get a formatter of their own that does nothing (below)
-    cell_w = (width - left - right) / ncols
-    cell_h = (height - top - bottom) / nrows
-    gap_w, gap_h = 0.25, 0.42  # between panels: tick marks; a panel title
-    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False, gridspec_kw={
-        "left": left / width, "right": 1 - right / width, "bottom": bottom / height,
-        "top": 1 - top / height, "wspace": gap_w / (cell_w - gap_w),
-        "hspace": gap_h / (cell_h - gap_h)})).ravel()
+    margins = {"left": 0.75, "right": 1.1, "bottom": 0.62 + (0.22 if any_negative else 0.0),
+               "top": 0.22 + 0.24 * suptitle_lines + 0.3}
+    axes = _panel_grid(fig, nrows, ncols, **margins)
     art = None
     # one interpolation for all panels: they share the triangulation (same values as one each)
     fields = interpolate_field(xy, coeffs.T, grid_n) if placed is None else None
@@ -152,26 +140,10 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
             art = draw_field(ax, xy, coeffs[p], norm, grid_n, negative_below=thr,
                              field=(gx, gy, z[..., p]))
         others = [m for m in mains if m != mains[p]] if highlight_all else []
-        if others:
-            io = label_index(labels, others)
-            ax.scatter(xy[io, 0], xy[io, 1], s=14, facecolors="none", edgecolors="#EE6677",
-                       linewidths=0.7, zorder=4)
-        setup_frontal(ax, extent)
-        draw_markers(ax, xy, labels, highlight=[mains[p]], dots=dots)
-        set_title(ax, titles[p], fontsize=10)
-        ax.label_outer()
-        # the tick labels label_outer hid: not formatted again at every layout pass
-        if not ax.get_subplotspec().is_last_row():
-            ax.xaxis.set_major_formatter(NullFormatter())
-        if not ax.get_subplotspec().is_first_col():
-            ax.yaxis.set_major_formatter(NullFormatter())
+        _finish_panel(ax, xy, labels, mains[p], others, extent, titles[p], dots)
     _ticks_in_view(axes[: len(mains)])
     if art is not None:
-        plot_h = 1 - (top + bottom) / height
-        cax = fig.add_axes((1 - (right - 0.25) / width, bottom / height + 0.1 * plot_h,
-                            0.15 / width, 0.8 * plot_h), label="<colorbar>")
-        cb = fig.colorbar(art, cax=cax, extend="neither")
-        cb.set_label(cbar_label)
+        _colour_bar(fig, art, cbar_label, **margins)
     if any_negative:
         fig.legend(handles=[Patch(facecolor="white", edgecolor=NEGATIVE_COLOUR, hatch="////",
                                   label=f"negative: below {-thr:.2g} (values < 0 are white)")],
@@ -179,6 +151,54 @@ def _field_panels(neutral: np.ndarray, labels: list[str], coeffs: np.ndarray,
                    fontsize=8, frameon=False)
     fig.suptitle(suptitle, y=1 - 0.12 / height, va="top")
     return fig
+
+
+def _panel_grid(fig: Figure, nrows: int, ncols: int, left: float, right: float,
+                bottom: float, top: float) -> np.ndarray:
+    """The panels (flat) in a fixed layout in inches, margins for the tick labels and label
+    (left, below, with the legend), the suptitle and panel titles (above) and the colour bar
+    (right)."""
+    # matplotlib's constrained layout measured every tick label of every panel in two passes:
+    # half of the figure's cost
+    width, height = fig.get_size_inches()
+    # not shared: every panel gets the same limits (setup_frontal), and an inner panel's hidden
+    # tick labels get a formatter of their own that does nothing (_finish_panel)
+    cell_w = (width - left - right) / ncols
+    cell_h = (height - top - bottom) / nrows
+    gap_w, gap_h = 0.25, 0.42  # between panels: tick marks; a panel title
+    return np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False, gridspec_kw={
+        "left": left / width, "right": 1 - right / width, "bottom": bottom / height,
+        "top": 1 - top / height, "wspace": gap_w / (cell_w - gap_w),
+        "hspace": gap_h / (cell_h - gap_h)})).ravel()
+
+
+def _finish_panel(ax, xy: np.ndarray, labels: list[str], main: str, others: list[str],
+                  extent: np.ndarray, title: str, dots: bool) -> None:
+    """The other main markers ringed, the face's frame, the markers, the title, outer ticks."""
+    if others:
+        io = label_index(labels, others)
+        ax.scatter(xy[io, 0], xy[io, 1], s=14, facecolors="none", edgecolors="#EE6677",
+                   linewidths=0.7, zorder=4)
+    setup_frontal(ax, extent)
+    draw_markers(ax, xy, labels, highlight=[main], dots=dots)
+    set_title(ax, title, fontsize=10)
+    ax.label_outer()
+    # the tick labels label_outer hid: not formatted again at every layout pass
+    if not ax.get_subplotspec().is_last_row():
+        ax.xaxis.set_major_formatter(NullFormatter())
+    if not ax.get_subplotspec().is_first_col():
+        ax.yaxis.set_major_formatter(NullFormatter())
+
+
+def _colour_bar(fig: Figure, art, label: str, left: float, right: float, bottom: float,
+                top: float) -> None:
+    """The colour bar in the right margin, over the middle 80 % of the panels' height."""
+    width, height = fig.get_size_inches()
+    plot_h = 1 - (top + bottom) / height
+    cax = fig.add_axes((1 - (right - 0.25) / width, bottom / height + 0.1 * plot_h,
+                        0.15 / width, 0.8 * plot_h), label="<colorbar>")
+    cb = fig.colorbar(art, cax=cax, extend="neither")
+    cb.set_label(label)
 
 
 def _ticks_in_view(axes) -> None:

@@ -241,15 +241,7 @@ def stability(
     """
     A, labels, Gs, rows, groups = _prepare(A, labels, row_sentence)
     n = A.shape[1]
-    m = _check_n_pivots(n_pivots, n)
-    ks = [int(k) for k in k_agree]
-    for k in ks:
-        if not 1 <= k <= n:
-            raise InputError(f"k_agree: {k} is outside 1..{n} markers")
-    if not (np.isfinite(tolerance) and tolerance > 0):
-        raise InputError(f"tolerance: must be a positive relative tolerance, got {tolerance!r}")
-    if isinstance(n_replicates, bool) or int(n_replicates) < 0:
-        raise InputError(f"n_replicates: must be a non-negative integer, got {n_replicates!r}")
+    m, ks = _checked_settings(n, n_pivots, k_agree, tolerance, n_replicates)
     steps = max([m, *ks])
     S = Gs.shape[0]
 
@@ -264,21 +256,8 @@ def stability(
     rng = np.random.default_rng(seed)
     perms = np.array([rng.permutation(S) for _ in range(int(n_replicates))], dtype=np.intp)
     perms = perms.reshape(int(n_replicates), S)
-    settled_rep = np.empty((perms.shape[0], m), dtype=np.intp)
-    agree_count = {k: np.zeros(S, dtype=np.int64) for k in ks}
-    for start in range(0, perms.shape[0], chunk):
-        P = perms[start : start + chunk]
-        c = P.shape[0]
-        Gcum = cumulative(Gs[P], axis=1, overwrite=True).reshape(c * S, n, n)  # 1..S sentences
-        rows_cum = np.cumsum(rows[P], axis=1).reshape(c * S)
-        piv, rr, _ = _gram_pivots(Gcum, rows_cum, steps)
-        piv = piv.reshape(c, S, steps)
-        rr = rr.reshape(c, S, steps)[..., :m]
-        settled_rep[start : start + c] = _settled(rr, final_r[None, :].repeat(c, 0), tolerance)
-        for k in ks:
-            same = (np.sort(piv[..., :k], axis=-1) == final_sets[k]).all(axis=-1)
-            agree_count[k] += same.sum(axis=0)
-
+    settled_rep, agree_count = _random_orders(Gs, rows, perms, steps, final_r, ks, final_sets,
+                                              tolerance, chunk)
     nrep = perms.shape[0]
 
     def q(a, p):
@@ -309,3 +288,41 @@ def stability(
         ]
     )
     return StabilityResult(settling, agreement)
+
+
+def _checked_settings(n: int, n_pivots, k_agree, tolerance, n_replicates) -> tuple[int, list]:
+    """The number of pivots followed and the k of the agreement, every setting checked."""
+    m = _check_n_pivots(n_pivots, n)
+    ks = [int(k) for k in k_agree]
+    for k in ks:
+        if not 1 <= k <= n:
+            raise InputError(f"k_agree: {k} is outside 1..{n} markers")
+    if not (np.isfinite(tolerance) and tolerance > 0):
+        raise InputError(f"tolerance: must be a positive relative tolerance, got {tolerance!r}")
+    if isinstance(n_replicates, bool) or int(n_replicates) < 0:
+        raise InputError(f"n_replicates: must be a non-negative integer, got {n_replicates!r}")
+    return m, ks
+
+
+def _random_orders(Gs: np.ndarray, rows: np.ndarray, perms: np.ndarray, steps: int,
+                   final_r: np.ndarray, ks: list[int], final_sets: dict, tolerance: float,
+                   chunk: int) -> tuple[np.ndarray, dict]:
+    """For each sentence order in ``perms``: when each of the first m r_rms settled, and per k
+    how many orders' first k pivots after n sentences equal the final set, for every n."""
+    S, n = Gs.shape[0], Gs.shape[1]
+    m = final_r.size
+    settled_rep = np.empty((perms.shape[0], m), dtype=np.intp)
+    agree_count = {k: np.zeros(S, dtype=np.int64) for k in ks}
+    for start in range(0, perms.shape[0], chunk):
+        P = perms[start : start + chunk]
+        c = P.shape[0]
+        Gcum = cumulative(Gs[P], axis=1, overwrite=True).reshape(c * S, n, n)  # 1..S sentences
+        rows_cum = np.cumsum(rows[P], axis=1).reshape(c * S)
+        piv, rr, _ = _gram_pivots(Gcum, rows_cum, steps)
+        piv = piv.reshape(c, S, steps)
+        rr = rr.reshape(c, S, steps)[..., :m]
+        settled_rep[start : start + c] = _settled(rr, final_r[None, :].repeat(c, 0), tolerance)
+        for k in ks:
+            same = (np.sort(piv[..., :k], axis=-1) == final_sets[k]).all(axis=-1)
+            agree_count[k] += same.sum(axis=0)
+    return settled_rep, agree_count

@@ -44,6 +44,7 @@ cannot tell which of two identical trajectories is the original).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -99,19 +100,66 @@ def find_redundant_markers(
     labels = [str(x) for x in labels]
     if A.ndim != 2 or A.shape[1] != len(labels) or A.shape[0] % 3:
         raise InputError(f"A: expected a (3F x {len(labels)}) matrix, got shape {A.shape}")
-    rate = _positive("rate", rate)
-    noise_mm = _positive("noise_mm", noise_mm)
-    min_duration_s = _positive("min_duration_s", min_duration_s)
-    frac = _positive("max_residual_fraction", max_residual_fraction)
-    c_lo, c_hi = (float(x) for x in coefficient_range)
-    if not 0 < c_lo < c_hi:
-        raise InputError(f"coefficient_range: need 0 < low < high, got {coefficient_range!r}")
+    crit = CopyCriteria.checked(rate, noise_mm, min_duration_s, max_residual_fraction,
+                                coefficient_range)
+    _check_finite(A, labels)
+    F, n = A.shape[0] // 3, A.shape[1]
+    ids, groups = sentence_rows(row_sentence, A.shape[0])
+    sentence_names, fill_mask = _check_sentences_and_mask(sentence_names, fill_mask, ids, F, n)
+    frame_groups = [g[::3] // 3 for g in groups]  # frames of each sentence, recording order
+    b = max(2, int(np.ceil(crit.min_duration_s * crit.rate / 2)))  # velocity samples per block
+    vel = velocity_blocks(A.reshape(F, 3, n), frame_groups, b)
+    if vel is None:
+        return pd.DataFrame(columns=COLUMNS)
+    sigma_hat = noise_estimate(vel, crit.noise_mm)
+    floor = np.minimum(crit.noise_mm, np.minimum.outer(sigma_hat, sigma_hat))
+    thr = np.maximum(crit.max_residual_fraction * floor, 1e-9)  # on residual_rms_mm, per pair
+    flagged = flag_blocks(vel, thr, crit.coefficient_range)
+    intervals = flagged_intervals(flagged, vel, thr)
+    rows = []
+    for i, j, f0, f1, sents in merge_across_sentences(intervals, frame_groups):
+        row = _interval_row(vel, frame_groups, labels, (i, j), (f0, f1), sents, crit, fill_mask)
+        if row is not None:
+            names = [sentence_names[int(ids[s])] if sentence_names is not None else str(ids[s])
+                     for s in sents]
+            rows.append({**row, "sentences": ",".join(names)})
+    out = pd.DataFrame(rows, columns=COLUMNS)
+    return out.sort_values(["start_frame", "marker", "explained_by"], ignore_index=True)
+
+
+@dataclass(frozen=True)
+class CopyCriteria:
+    """What makes an interval a copy (module docstring): the data's noise, the shortest copy,
+    the residual's fraction of the noise floor and the range of the coefficient c."""
+
+    rate: float
+    noise_mm: float = 0.5
+    min_duration_s: float = 0.25
+    max_residual_fraction: float = 0.4
+    coefficient_range: tuple[float, float] = (0.5, 2.0)
+
+    @classmethod
+    def checked(cls, rate, noise_mm, min_duration_s, max_residual_fraction,
+                coefficient_range) -> CopyCriteria:
+        """The criteria from settings, each checked (one-line InputError naming it)."""
+        rate = _positive("rate", rate)
+        noise_mm = _positive("noise_mm", noise_mm)
+        min_duration_s = _positive("min_duration_s", min_duration_s)
+        frac = _positive("max_residual_fraction", max_residual_fraction)
+        c_lo, c_hi = (float(x) for x in coefficient_range)
+        if not 0 < c_lo < c_hi:
+            raise InputError(f"coefficient_range: need 0 < low < high, got {coefficient_range!r}")
+        return cls(rate, noise_mm, min_duration_s, frac, (c_lo, c_hi))
+
+
+def _check_finite(A: np.ndarray, labels: list[str]) -> None:
     bad = ~np.isfinite(A).all(axis=0)
     if bad.any():
         names = ", ".join(labels[j] for j in np.flatnonzero(bad))
         raise InputError(f"A: NaN or inf displacements in marker(s) {names}")
-    F, n = A.shape[0] // 3, A.shape[1]
-    ids, groups = sentence_rows(row_sentence, A.shape[0])
+
+
+def _check_sentences_and_mask(sentence_names, fill_mask, ids: np.ndarray, F: int, n: int):
     if sentence_names is not None:
         sentence_names = [str(s) for s in sentence_names]
         if len(sentence_names) <= int(np.max(ids)):
@@ -122,13 +170,34 @@ def find_redundant_markers(
         fill_mask = np.asarray(fill_mask, dtype=bool)
         if fill_mask.shape != (F, n):
             raise InputError(f"fill_mask: expected shape {(F, n)}, got {fill_mask.shape}")
-    D = A.reshape(F, 3, n)
-    frame_groups = [g[::3] // 3 for g in groups]  # frames of each sentence, recording order
-    b = max(2, int(np.ceil(min_duration_s * rate / 2)))  # velocity samples per block
+    return sentence_names, fill_mask
 
-    # ---- blocks of velocities, sentence by sentence ------------------------------------
+
+@dataclass
+class VelocityBlocks:
+    """Velocities v(t) = d(t+1) - d(t) within each sentence, cut into blocks of ``b`` samples.
+
+    ``per_sentence``: (frames, velocities (T, 3, n)) of each sentence; ``blocks``: (nblocks,
+    3 b, n), the last block of a sentence zero-padded; ``counts``: velocity samples in each
+    block; ``t0``: each block's first velocity sample in its sentence; ``sentence``: its
+    sentence.
+    """
+
+    per_sentence: list[tuple[np.ndarray, np.ndarray]]
+    blocks: np.ndarray
+    counts: np.ndarray
+    t0: np.ndarray
+    sentence: np.ndarray
+    b: int
+
+
+def velocity_blocks(D: np.ndarray, frame_groups: list[np.ndarray], b: int
+                    ) -> VelocityBlocks | None:
+    """The velocities of D (F, 3, n) in blocks of ``b`` samples, sentence by sentence (None when
+    no sentence has two frames)."""
+    n = D.shape[2]
     V_parts, counts, block_t0, block_sent = [], [], [], []
-    vel = []  # per sentence: (frames, velocity array)
+    vel = []
     for s, fr in enumerate(frame_groups):
         if fr.size < 2:
             vel.append((fr, np.zeros((0, 3, n))))
@@ -145,29 +214,34 @@ def find_redundant_markers(
         block_t0.append(np.arange(nb) * b)
         block_sent.append(np.full(nb, s))
     if not V_parts:
-        return pd.DataFrame(columns=COLUMNS)
-    Vb = np.concatenate(V_parts)
-    counts = np.concatenate(counts)
-    block_t0 = np.concatenate(block_t0)
-    block_sent = np.concatenate(block_sent)
-    nblocks = Vb.shape[0]
+        return None
+    return VelocityBlocks(vel, np.concatenate(V_parts), np.concatenate(counts),
+                          np.concatenate(block_t0), np.concatenate(block_sent), b)
 
-    # ---- per-marker noise estimate: RMS(second difference) / sqrt(6), median over blocks --
+
+def noise_estimate(vel: VelocityBlocks, noise_mm: float) -> np.ndarray:
+    """Per-marker noise (mm): RMS(second difference) / sqrt(6), the white-noise value, median
+    over blocks; ``noise_mm`` for every marker when no sentence has two blocks."""
+    b = vel.b
+    n = vel.blocks.shape[2]
     acc = []
-    for _, Vs in vel:
+    for _, Vs in vel.per_sentence:
         if Vs.shape[0] >= 2 * b:
             a2 = np.diff(Vs, axis=0)
             m = (a2.shape[0] // b) * b
             acc.append(np.sqrt((a2[:m].reshape(-1, b * 3, n) ** 2).mean(axis=1)))
-    sigma_hat = (
-        np.median(np.concatenate(acc), axis=0) / np.sqrt(6.0) if acc else np.full(n, noise_mm)
-    )
-    floor = np.minimum(noise_mm, np.minimum.outer(sigma_hat, sigma_hat))
-    thr = np.maximum(frac * floor, 1e-9)  # threshold on residual_rms_mm per pair
+    return np.median(np.concatenate(acc), axis=0) / np.sqrt(6.0) if acc else np.full(n, noise_mm)
 
-    # ---- batched block Gram matrices: c and residual of every ordered pair ---------------
+
+def flag_blocks(vel: VelocityBlocks, thr: np.ndarray, coefficient_range: tuple[float, float]
+                ) -> np.ndarray:
+    """(nblocks, n, n) bool, symmetric: blocks where marker i ~ c marker j with the residual
+    below ``thr[i, j]`` and c in the range, from each block's Gram matrix (batched)."""
+    c_lo, c_hi = coefficient_range
+    Vb, counts = vel.blocks, vel.counts
+    nblocks, n = Vb.shape[0], Vb.shape[2]
     flagged = np.zeros((nblocks, n, n), dtype=bool)
-    valid = counts >= max(2, b // 2)
+    valid = counts >= max(2, vel.b // 2)
     off = ~np.eye(n, dtype=bool)
     chunk = max(1, min(1024, _CHUNK_BYTES // (8 * n * n)))  # blocks per batched Gram
     for start in range(0, nblocks, chunk):
@@ -182,9 +256,16 @@ def find_redundant_markers(
         ok = (res < thr) & (c > c_lo) & (c < c_hi) & (gd[:, None, :] > 0) & off
         ok &= valid[start : start + chunk, None, None]
         flagged[start : start + chunk] = ok | ok.transpose(0, 2, 1)
+    return flagged
 
-    # ---- runs of flagged blocks per unordered pair -> refined intervals ----------------
-    intervals = []  # (i, j, first_frame, end_frame_exclusive, sentence)
+
+def flagged_intervals(flagged: np.ndarray, vel: VelocityBlocks, thr: np.ndarray
+                      ) -> list[tuple[int, int, int, int, int]]:
+    """Runs of flagged blocks of each pair i < j within a sentence, refined to the frame:
+    (i, j, first frame, end frame (exclusive), sentence)."""
+    n = flagged.shape[1]
+    block_sent, block_t0, counts = vel.sentence, vel.t0, vel.counts
+    intervals = []
     bi, ii, jj = np.nonzero(flagged & np.triu(np.ones((n, n), dtype=bool), 1)[None])
     order = np.lexsort((bi, jj, ii))
     bi, ii, jj = bi[order], ii[order], jj[order]
@@ -198,20 +279,24 @@ def find_redundant_markers(
     ends = np.concatenate([brk, [bi.size - 1]]).astype(int) if bi.size else np.array([], int)
     for a, z in zip(starts, ends, strict=True):
         i, j, s = int(ii[a]), int(jj[a]), int(block_sent[bi[a]])
-        fr, Vs = vel[s]
+        fr, Vs = vel.per_sentence[s]
         t0 = int(block_t0[bi[a]])
         t1 = int(block_t0[bi[z]] + counts[bi[z]])  # velocity samples [t0, t1)
         t0, t1 = _refine(Vs[:, :, i], Vs[:, :, j], t0, t1, float(thr[i, j]))
         if t1 <= t0:
             continue
         intervals.append((i, j, int(fr[t0]), int(fr[t1]) + 1, s))  # frames fr[t0]..fr[t1]
+    return intervals
 
-    # ---- merge across sentence boundaries, keep >= min_duration_s ------------------------
+
+def merge_across_sentences(intervals: list[tuple[int, int, int, int, int]],
+                           frame_groups: list[np.ndarray]) -> list[list]:
+    """Intervals of a pair that run to the end of one sentence and from the start of the next
+    joined into one: [i, j, first frame, end frame, [sentences]]."""
     first_frame = {s: int(fr[0]) for s, fr in enumerate(frame_groups) if fr.size}
     last_frame = {s: int(fr[-1]) for s, fr in enumerate(frame_groups) if fr.size}
-    intervals.sort()
     merged: list[list] = []
-    for i, j, f0, f1, s in intervals:
+    for i, j, f0, f1, s in sorted(intervals):
         if merged:
             pi, pj, pf0, pf1, ps = merged[-1]
             touching = (
@@ -222,51 +307,40 @@ def find_redundant_markers(
                 merged[-1] = [i, j, pf0, f1, [*ps, s]]
                 continue
         merged.append([i, j, f0, f1, [s]])
+    return merged
 
-    rows = []
-    for i, j, f0, f1, ss_ in merged:
-        frames = np.concatenate(
-            [frame_groups[s][(frame_groups[s] >= f0) & (frame_groups[s] < f1)] for s in ss_]
-        )
-        if frames.size < min_duration_s * rate:
-            continue
-        # statistics over the interval's velocity samples (within sentences only)
-        vi, vj = [], []
-        for s in ss_:
-            fr, Vs = vel[s]
-            sel = (fr[:-1] >= f0) & (fr[1:] < f1)
-            vi.append(Vs[sel, :, i])
-            vj.append(Vs[sel, :, j])
-        vi, vj = np.concatenate(vi), np.concatenate(vj)
-        src, cpy = j, i
-        fi = fj = 0
-        if fill_mask is not None:
-            fi, fj = fill_mask[frames, i].sum(), fill_mask[frames, j].sum()
-        if fj > fi or (fj == fi and i < j):
-            # the more-filled marker is the copy; with no fill flags to tell, the later column
-            src, cpy, vi, vj = i, j, vj, vi
-        coef = float(np.sum(vi * vj) / np.sum(vj * vj))
-        resid = float(np.sqrt(np.mean((vi - coef * vj) ** 2) / 2.0))
-        names = [
-            sentence_names[int(ids[s])] if sentence_names is not None else str(ids[s])
-            for s in ss_
-        ]
-        rows.append(
-            {
-                "marker": labels[cpy],
-                "explained_by": labels[src],
-                "coefficient": coef,
-                "residual_rms_mm": resid,
-                "start_s": f0 / rate,
-                "end_s": f1 / rate,
-                "start_frame": f0,
-                "end_frame": f1,
-                "n_frames": int(frames.size),
-                "sentences": ",".join(names),
-            }
-        )
-    out = pd.DataFrame(rows, columns=COLUMNS)
-    return out.sort_values(["start_frame", "marker", "explained_by"], ignore_index=True)
+
+def _interval_row(vel: VelocityBlocks, frame_groups: list[np.ndarray], labels: list[str],
+                  pair: tuple[int, int], span: tuple[int, int], sents: list[int],
+                  crit: CopyCriteria, fill_mask: np.ndarray | None) -> dict | None:
+    """The copy, its source, c and the residual over the interval's velocity samples (within
+    sentences only); None when the interval is shorter than ``crit.min_duration_s``."""
+    (i, j), (f0, f1) = pair, span
+    frames = np.concatenate(
+        [frame_groups[s][(frame_groups[s] >= f0) & (frame_groups[s] < f1)] for s in sents]
+    )
+    if frames.size < crit.min_duration_s * crit.rate:
+        return None
+    vi, vj = [], []
+    for s in sents:
+        fr, Vs = vel.per_sentence[s]
+        sel = (fr[:-1] >= f0) & (fr[1:] < f1)
+        vi.append(Vs[sel, :, i])
+        vj.append(Vs[sel, :, j])
+    vi, vj = np.concatenate(vi), np.concatenate(vj)
+    src, cpy = j, i
+    fi = fj = 0
+    if fill_mask is not None:
+        fi, fj = fill_mask[frames, i].sum(), fill_mask[frames, j].sum()
+    if fj > fi or (fj == fi and i < j):
+        # the more-filled marker is the copy; with no fill flags to tell, the later column
+        src, cpy, vi, vj = i, j, vj, vi
+    coef = float(np.sum(vi * vj) / np.sum(vj * vj))  # least squares c in v_i ~ c v_j
+    resid = float(np.sqrt(np.mean((vi - coef * vj) ** 2) / 2.0))  # residual_rms_mm
+    return {"marker": labels[cpy], "explained_by": labels[src], "coefficient": coef,
+            "residual_rms_mm": resid,
+            "start_s": f0 / crit.rate, "end_s": f1 / crit.rate, "start_frame": f0,
+            "end_frame": f1, "n_frames": int(frames.size)}
 
 
 def _refine(vi, vj, t0, t1, thr):

@@ -271,3 +271,23 @@ def limits_from_config(gaps: dict, checks: dict):
                   face_spread_mm=tuple(checks["face_spread_mm"]),
                   rate_hz=tuple(checks["rate_hz"]),
                   max_shape_rms_mm=checks["max_shape_rms_mm"], names=names)
+
+
+def lip_settings(lips: dict, n_frames: int):
+    """The lip model's settings (:class:`facemotion.lips.pipeline.LipSettings`) from the
+    ``lips`` settings, for a lip subject of ``n_frames`` frames: the frame selections made
+    0-based, noise_var 'auto' read as the probabilistic-PCA choice."""
+    from facemotion.lips.pipeline import LipSettings
+    from facemotion.study.sheet import parse_sentences
+
+    train = parse_sentences(lips["train_frames"], n_frames, "lips.train_frames")
+    test = parse_sentences(lips["test_frames"], n_frames, "lips.test_frames")
+    noise_var = "ppca" if lips["noise_var"] == "auto" else lips["noise_var"]
+    if isinstance(noise_var, str) and noise_var != "ppca":
+        raise InputError(f"setting lips.noise_var: {noise_var!r} is neither a number nor 'auto'")
+    extent = lips["model_extent"]
+    return LipSettings(train_frames=tuple(train), test_frames=tuple(test),
+                       n_modes=lips["n_modes"], noise_var=noise_var, E=lips["E"], nu=lips["nu"],
+                       model_extent=None if extent is None else tuple(extent),
+                       noise_grid=tuple(lips["noise_var_sweep"]),
+                       normalisation=lips["normalisation"])

@@ -113,6 +113,21 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
     Subjects with a ``simulate`` design have their recordings under ``virtual_dir``.
     """
     path = Path(path)
+    sheet = _checked_table(path)
+    subjects: dict[str, Subject] = {}
+    for i, row in sheet.iterrows():
+        where = f"subject sheet {path}, row {i + 2}"
+        sid = _cell(row, "subject")
+        if sid is None or not _ID.match(sid):
+            raise InputError(f"{where}: subject id {sid!r} must be letters, digits, '_', '.', '-'")
+        if sid in subjects:
+            raise InputError(f"{where}: duplicate subject {sid!r}")
+        subjects[sid] = subject_from_row(row, sid, where, path, shared_data, virtual_dir)
+    return subjects
+
+
+def _checked_table(path: Path) -> pd.DataFrame:
+    """The sheet's table, with the expected columns and at least one subject."""
     if not path.is_file():
         raise InputError(f"subject sheet {path}: file not found")
     try:
@@ -130,108 +145,123 @@ def read_subject_sheet(path: str | Path, shared_data: str | Path | None = None,
         raise InputError(f"subject sheet {path}: unknown column(s) {unknown}")
     if sheet.empty:
         raise InputError(f"subject sheet {path}: no subjects")
-    subjects: dict[str, Subject] = {}
-    for i, row in sheet.iterrows():
-        where = f"subject sheet {path}, row {i + 2}"
-        sid = _cell(row, "subject")
-        if sid is None or not _ID.match(sid):
-            raise InputError(f"{where}: subject id {sid!r} must be letters, digits, '_', '.', '-'")
-        if sid in subjects:
-            raise InputError(f"{where}: duplicate subject {sid!r}")
-        fmt = (_cell(row, "format") or "").lower()
-        if fmt not in FORMAT_NAMES:
-            raise InputError(f"{where}: unknown format {fmt!r} for subject {sid!r} "
-                             f"(use one of {', '.join(FORMAT_NAMES)})")
-        units = _cell(row, "units")
-        if units is not None and units not in UNITS:
-            raise InputError(f"{where}: unknown units {units!r} for subject {sid!r} "
-                             f"(use one of {', '.join(UNITS)})")
-        design = _cell(row, "simulate")
-        copy_markers = parse_copy_markers(_cell(row, "copy_markers"), f"{where}: copy_markers")
-        if design is not None:
-            from facemotion.virtual.designs import get_design
+    return sheet
 
-            spec = get_design(design, f"{where}: simulate")
-            # the S1 design records marker 13 only in each sentence's first frame; the
-            # authors filled it by copying 11, so that is its sheet's default
-            copy_markers = copy_markers or list(spec.copy_markers)
-        seed = _int_cell(row, "seed", where, 0)
-        talker_seed = _int_cell(row, "talker_seed", where, None)
-        n_sentences = _int_cell(row, "n_sentences", where, None)
-        duration = _cell(row, "sentence_duration")
-        if duration is not None:
-            try:
-                lo, hi = (float(x) for x in duration.split("-"))
-            except ValueError:
-                raise InputError(f"{where}: sentence_duration {duration!r} must look like "
-                                 "'1.5-4' (seconds)") from None
-            if not 0 < lo <= hi:
-                raise InputError(f"{where}: sentence_duration {duration!r} must satisfy "
-                                 "0 < low <= high")
-            sentence_duration = (lo, hi)
-        else:
-            sentence_duration = None
+
+def subject_from_row(row: pd.Series, sid: str, where: str, path: Path,
+                     shared_data: str | Path | None = None,
+                     virtual_dir: str | Path = "results/virtual") -> Subject:
+    """One row of the sheet at ``path`` as a Subject, every cell checked."""
+    fmt = (_cell(row, "format") or "").lower()
+    if fmt not in FORMAT_NAMES:
+        raise InputError(f"{where}: unknown format {fmt!r} for subject {sid!r} "
+                         f"(use one of {', '.join(FORMAT_NAMES)})")
+    units = _cell(row, "units")
+    if units is not None and units not in UNITS:
+        raise InputError(f"{where}: unknown units {units!r} for subject {sid!r} "
+                         f"(use one of {', '.join(UNITS)})")
+    design = _cell(row, "simulate")
+    copy_markers = parse_copy_markers(_cell(row, "copy_markers"), f"{where}: copy_markers")
+    spec = None
+    if design is not None:
+        from facemotion.virtual.designs import get_design
+
+        spec = get_design(design, f"{where}: simulate")
+        # the S1 design records marker 13 only in each sentence's first frame; the
+        # authors filled it by copying 11, so that is its sheet's default
+        copy_markers = copy_markers or list(spec.copy_markers)
+    seed = _int_cell(row, "seed", where, 0)
+    talker_seed = _int_cell(row, "talker_seed", where, None)
+    n_sentences = _int_cell(row, "n_sentences", where, None)
+    sentence_duration = _sentence_duration(_cell(row, "sentence_duration"), where)
+    if spec is not None:
+        recordings, n_sentences = simulated_recordings(spec, design, fmt, n_sentences, sid,
+                                                       virtual_dir, where)
+    else:
+        recordings = recorded_files(_cell(row, "recordings"), fmt, sid, path.parent,
+                                    shared_data, where)
+    prefix = _cell(row, "subject_prefix")
+    segments, sources = None, []
+    if _cell(row, "segments") is not None:
         if design is not None:
-            written = dict(spec.formats)
-            if fmt not in written:
-                raise InputError(f"{where}: simulated subject {sid!r} (design {design!r}) is "
-                                 f"written as {' or '.join(written)}, not {fmt!r}")
-            n = n_sentences or spec.sentences
-            if n is None:
-                raise InputError(f"{where}: design {design!r} needs n_sentences")
-            if n < 1:
-                raise InputError(f"{where}: n_sentences must be at least 1")
-            recordings = [str(Path(virtual_dir) / sid / f"{sid}_s{j + 1:02d}.{written[fmt]}")
-                          for j in range(n)]
-            n_sentences = n
-        else:
-            pattern = _cell(row, "recordings")
-            if pattern is None:
-                raise InputError(f"{where}: subject {sid!r} has no recordings")
-            if "{shared_data}" in pattern:
-                if shared_data is None:
-                    raise InputError(f"{where}: recordings use {{shared_data}} but the setting "
-                                     "'shared_data' is not set")
-                pattern = pattern.replace("{shared_data}", str(shared_data))
-            full = pattern if Path(pattern).is_absolute() else str(path.parent / pattern)
-            if glob.has_magic(full):
-                recordings = sorted(glob.glob(full), key=natural_key)
-                if not recordings:
-                    raise InputError(f"{where}: recordings {pattern!r} of subject {sid!r} "
-                                     f"match no file (looked for {full})")
-            else:
-                if Path(full).is_dir():
-                    raise InputError(f"{where}: recordings {full} of subject {sid!r} is a "
-                                     "directory; give a file or a glob such as "
-                                     f"{Path(pattern) / ('*.' + fmt)}")
-                if not Path(full).is_file():
-                    raise InputError(f"{where}: recording file {full} of subject {sid!r} "
-                                     "not found")
-                recordings = [full]
-            dirs = [r for r in recordings if not Path(r).is_file()]
-            if dirs:
-                raise InputError(f"{where}: recordings {pattern!r} of subject {sid!r} match "
-                                 f"{dirs[0]}, which is not a file")
-            recordings = [str(Path(p)) for p in recordings]
-        prefix = _cell(row, "subject_prefix")
-        segments, sources = None, []
-        if _cell(row, "segments") is not None:
-            if design is not None:
-                raise InputError(f"{where}: simulated subject {sid!r} has one file per "
-                                 "sentence; leave its segments cell empty")
-            segments, sources = segment_subject(
-                _cell(row, "segments"), recordings, fmt, path.parent,
-                f"{where} (subject {sid!r})", shared_data=shared_data, subject_prefix=prefix)
-        subjects[sid] = Subject(
-            id=sid, recordings=recordings, format=fmt, segments=segments,
-            segment_sources=sources, subject_prefix=prefix,
-            head_markers=_labels_cell(row, "head_markers", where, sid),
-            exclude_markers=_labels_cell(row, "exclude_markers", where, sid),
-            include_markers=_labels_cell(row, "include_markers", where, sid),
-            units=units, simulate=design, seed=seed, talker_seed=talker_seed,
-            n_sentences=n_sentences, sentence_duration=sentence_duration,
-            copy_markers=copy_markers)
-    return subjects
+            raise InputError(f"{where}: simulated subject {sid!r} has one file per "
+                             "sentence; leave its segments cell empty")
+        segments, sources = segment_subject(
+            _cell(row, "segments"), recordings, fmt, path.parent,
+            f"{where} (subject {sid!r})", shared_data=shared_data, subject_prefix=prefix)
+    return Subject(
+        id=sid, recordings=recordings, format=fmt, segments=segments,
+        segment_sources=sources, subject_prefix=prefix,
+        head_markers=_labels_cell(row, "head_markers", where, sid),
+        exclude_markers=_labels_cell(row, "exclude_markers", where, sid),
+        include_markers=_labels_cell(row, "include_markers", where, sid),
+        units=units, simulate=design, seed=seed, talker_seed=talker_seed,
+        n_sentences=n_sentences, sentence_duration=sentence_duration,
+        copy_markers=copy_markers)
+
+
+def _sentence_duration(duration: str | None, where: str) -> tuple[float, float] | None:
+    """'1.5-4' -> (1.5, 4.0) seconds, checked 0 < low <= high."""
+    if duration is None:
+        return None
+    try:
+        lo, hi = (float(x) for x in duration.split("-"))
+    except ValueError:
+        raise InputError(f"{where}: sentence_duration {duration!r} must look like "
+                         "'1.5-4' (seconds)") from None
+    if not 0 < lo <= hi:
+        raise InputError(f"{where}: sentence_duration {duration!r} must satisfy "
+                         "0 < low <= high")
+    return (lo, hi)
+
+
+def simulated_recordings(spec, design: str, fmt: str, n_sentences: int | None, sid: str,
+                         virtual_dir: str | Path, where: str) -> tuple[list[str], int]:
+    """The files a simulated subject's design writes under ``virtual_dir`` (one a sentence),
+    and their number."""
+    written = dict(spec.formats)
+    if fmt not in written:
+        raise InputError(f"{where}: simulated subject {sid!r} (design {design!r}) is "
+                         f"written as {' or '.join(written)}, not {fmt!r}")
+    n = n_sentences or spec.sentences
+    if n is None:
+        raise InputError(f"{where}: design {design!r} needs n_sentences")
+    if n < 1:
+        raise InputError(f"{where}: n_sentences must be at least 1")
+    return [str(Path(virtual_dir) / sid / f"{sid}_s{j + 1:02d}.{written[fmt]}")
+            for j in range(n)], n
+
+
+def recorded_files(pattern: str | None, fmt: str, sid: str, sheet_dir: Path,
+                   shared_data: str | Path | None, where: str) -> list[str]:
+    """The files of a recordings cell (a file or a glob, relative to the sheet), each a file."""
+    if pattern is None:
+        raise InputError(f"{where}: subject {sid!r} has no recordings")
+    if "{shared_data}" in pattern:
+        if shared_data is None:
+            raise InputError(f"{where}: recordings use {{shared_data}} but the setting "
+                             "'shared_data' is not set")
+        pattern = pattern.replace("{shared_data}", str(shared_data))
+    full = pattern if Path(pattern).is_absolute() else str(sheet_dir / pattern)
+    if glob.has_magic(full):
+        recordings = sorted(glob.glob(full), key=natural_key)
+        if not recordings:
+            raise InputError(f"{where}: recordings {pattern!r} of subject {sid!r} "
+                             f"match no file (looked for {full})")
+    else:
+        if Path(full).is_dir():
+            raise InputError(f"{where}: recordings {full} of subject {sid!r} is a "
+                             "directory; give a file or a glob such as "
+                             f"{Path(pattern) / ('*.' + fmt)}")
+        if not Path(full).is_file():
+            raise InputError(f"{where}: recording file {full} of subject {sid!r} "
+                             "not found")
+        recordings = [full]
+    dirs = [r for r in recordings if not Path(r).is_file()]
+    if dirs:
+        raise InputError(f"{where}: recordings {pattern!r} of subject {sid!r} match "
+                         f"{dirs[0]}, which is not a file")
+    return [str(Path(p)) for p in recordings]
 
 
 def _int_cell(row, col, where, default):

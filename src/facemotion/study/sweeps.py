@@ -140,3 +140,27 @@ def top_k_frequency(selected: pd.DataFrame, k: int = 10) -> pd.DataFrame:
     return pd.DataFrame({"marker": [r[0] for r in rows],
                          "count": [r[1] for r in rows],
                          "fraction": [r[1] / len(cols) for r in rows]})
+
+
+#: markers the paper names, and the column of their pivot order in the talkers table
+NAMED = {"40": "lower_lip_40", "56": "jaw_56", "34": "left_corner_34", "38": "right_corner_38",
+         "36": "upper_lip_36"}
+
+
+def talker_summary(r_values: dict[str, pd.DataFrame], curves: dict[str, pd.DataFrame]
+                   ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """One row per talker (``r_values`` and ``curves``: each talker's r_values.tsv and
+    error_curve.tsv, in the same order): its first 10 pivots, the pivot order of each marker
+    the paper names (-1 when the talker lacks it) and the held-out mean error at k = 10; and
+    the talkers' first 16 pivots as the columns of a Table I (for :func:`top_k_frequency`)."""
+    rows, selected = [], {"order": list(range(1, 17))}
+    for talker, r in r_values.items():
+        curve = curves[talker].set_index("k")
+        order = list(r["marker"])
+        selected[talker] = order[:16]
+        row = {"talker": talker, "first_pivots": ",".join(order[:10])}
+        for label, name in NAMED.items():
+            row[f"rank_{name}"] = order.index(label) + 1 if label in order else -1
+        row["heldout_mean_abs_error_mm_k10"] = float(curve.loc[10, "mean_abs_error_mm"])
+        rows.append(row)
+    return pd.DataFrame(rows), pd.DataFrame(selected)

@@ -324,8 +324,6 @@ def simulate_dense(design: str = "D468", seed: int = 0, n_sentences: int = 40, *
     talker's. Deterministic by (design, seed, talker_seed); for the same arguments the
     noise-free motion of D5023 at V0000-V0467 equals D468's.
     """
-    from scipy.spatial.transform import Rotation
-
     from facemotion.io.recording import Recording
     from facemotion.virtual import talker as synth
 
@@ -345,62 +343,36 @@ def simulate_dense(design: str = "D468", seed: int = 0, n_sentences: int = 40, *
     ts = DESIGNS[design].talker if talker_seed is None else int(talker_seed)
     talker = synth.make_talker(ts)
     face = dense_face(mesh_path(shared_data), talker.anatomy, n_vertices)
-    V = face.n
     D = synth.influence_fields(face.vertices, face.anatomy(talker.anatomy), face.lip_side)
     D *= talker.strengths[:, None, None]
-    K = D.shape[0]
-    Dflat = D.reshape(K, -1)
     coarse = face.vertices[:CANONICAL_VERTICES]
-    W = synth.tissue_factor(coarse)                              # (468, 468), W W^T = K_cc
-    M = None if V == CANONICAL_VERTICES else tissue_extension(coarse, face.vertices)
-    rest = np.concatenate([face.vertices, talker.head_band])
+    M = None if face.n == CANONICAL_VERTICES else tissue_extension(coarse, face.vertices)
     labels = face.labels + list(synth.HEAD_LABELS)
     rng = np.random.default_rng([seed, 31, ts])
-    noise_axis = noise_mm / np.sqrt(3.0)
-    rot_rms = np.deg2rad(head_rotation_deg)
-    session_tempo = 1.0 + rng.uniform(-synth.SESSION_TEMPO, synth.SESSION_TEMPO)
-    recs, names, courses_all, head_all, tempos = [], [], [], [], []
+    session = synth.Session(
+        labels=labels, rest=np.concatenate([face.vertices, talker.head_band]), fields=D,
+        tissue=synth.tissue_factor(coarse), rate=rate, duration=(lo, hi),   # W W^T = K_cc
+        tempo=1.0 + rng.uniform(-synth.SESSION_TEMPO, synth.SESSION_TEMPO),
+        noise_axis=noise_mm / np.sqrt(3.0), tissue_rms_mm=tissue_rms_mm,
+        rot_rms=np.deg2rad(head_rotation_deg), head_translation_mm=head_translation_mm)
+    recs, parts = [], []
     for s in range(n):
-        script = synth.sentence_script(s, (lo, hi))
-        tempo = session_tempo * float(np.exp(rng.normal(0.0, 0.04)))
-        gains = np.exp(rng.normal(0.0, 0.12, K))
-        courses = synth.perform(script, rng, rate, tempo, gains)
-        F = courses.shape[0]
-        onset = synth._onset(F, rate)[:, None, None]
-        # tissue on the canonical vertices (smooth in time, per axis), extended to the mesh
-        z = synth._smooth_noise(rng, (F, CANONICAL_VERTICES, 3), rate, synth.TISSUE_TIME_S,
-                                1.0)
-        tissue = np.matmul(W, z) * (tissue_rms_mm * onset)
-        if M is not None:
-            tissue = np.matmul(M, tissue)
-        pts = np.broadcast_to(rest, (F, len(labels), 3)).copy()
-        pts[:, :V] += (courses @ Dflat).reshape(F, V, 3) + tissue
-        # noise drawn vertex-major, so the first 468 vertices' noise does not depend on V
-        nrng = np.random.default_rng([seed, 32, ts, s])
-        pts[:, V:] += nrng.normal(0.0, noise_axis, (F, len(labels) - V, 3))
-        pts[:, :V] += nrng.normal(0.0, noise_axis, (V, F, 3)).transpose(1, 0, 2)
-        rotvec = rng.normal(0.0, 0.6 * rot_rms, 3) + synth._smooth_noise(
-            rng, (F, 3), rate, 0.35, rot_rms)
-        trans = rng.normal(0.0, 0.5 * head_translation_mm, 3) + synth._smooth_noise(
-            rng, (F, 3), rate, 0.35, head_translation_mm)
-        R = Rotation.from_rotvec(rotvec).as_matrix()
-        pivot = synth.HEAD_PIVOT
-        moved = np.matmul(pts - pivot, R.transpose(0, 2, 1)) + (pivot + trans[:, None])
-        name = f"{design}_s{s + 1:02d}"
-        recs.append(Recording(list(labels), moved, rate, name))
-        names.append(name)
-        courses_all.append(courses)
-        head_all.append(np.concatenate([rotvec, trans], axis=1))
-        tempos.append(tempo)
-    frames = np.array([len(c) for c in courses_all])
+        courses, tempo = synth.perform_sentence(session, s, rng)
+        pts = _dense_points(session, courses, rng, M, face.n,
+                            np.random.default_rng([seed, 32, ts, s]))
+        motion = synth.head_motion(session, courses.shape[0], rng)
+        recs.append(Recording(list(labels), synth.move_head(pts, motion), rate,
+                              f"{design}_s{s + 1:02d}"))
+        parts.append({"courses": courses, "head": motion, "tempo": tempo})
+    per_sentence = synth._sentence_truth(parts)
+    names = [r.source for r in recs]
     truth = {
-        "labels": np.array(labels), "neutral": rest, "anatomy": face.anatomy(talker.anatomy),
-        "sources": np.array(synth.SOURCES), "fields": D, "strengths": talker.strengths,
-        "names": np.array(names), "script_index": np.arange(n), "sentence_frames": frames,
-        "tempo": np.array(tempos), "source_courses": np.concatenate(courses_all),
-        "head_motion": np.concatenate(head_all), "head_pivot": synth.HEAD_PIVOT.copy(),
-        "missing": np.zeros((int(frames.sum()), len(labels)), bool),
-        "noise_per_axis_mm": np.array(noise_axis),
+        "labels": np.array(labels), "neutral": session.rest,
+        "anatomy": face.anatomy(talker.anatomy), "sources": np.array(synth.SOURCES),
+        "fields": D, "strengths": talker.strengths, "names": np.array(names),
+        "script_index": np.arange(n), **per_sentence, "head_pivot": synth.HEAD_PIVOT.copy(),
+        "missing": np.zeros((int(per_sentence["sentence_frames"].sum()), len(labels)), bool),
+        "noise_per_axis_mm": np.array(session.noise_axis),
         "tissue_rms_mm": np.array(tissue_rms_mm),
         "tissue_length_mm": np.array(synth.TISSUE_LENGTH_MM),
         "rate": np.array(float(rate)), "talker_seed": np.array(ts), "seed": np.array(seed),
@@ -410,6 +382,31 @@ def simulate_dense(design: str = "D468", seed: int = 0, n_sentences: int = 40, *
     subject = synth.SimulatedSubject(design, recs, names, list(synth.HEAD_LABELS), truth)
     subject.face = face
     return subject
+
+
+def _dense_points(session, courses: np.ndarray, rng: np.random.Generator,
+                  extension: np.ndarray | None, V: int, nrng: np.random.Generator
+                  ) -> np.ndarray:
+    """Every vertex and head-band marker (F, V + 6, 3) in the head frame: rest + sources'
+    fields + tissue (on the canonical vertices, extended to the mesh) + noise (from ``nrng``,
+    vertex-major)."""
+    from facemotion.virtual import talker as synth
+
+    F, K = courses.shape
+    onset = synth._onset(F, session.rate)[:, None, None]
+    # tissue on the canonical vertices (smooth in time, per axis), extended to the mesh
+    z = synth._smooth_noise(rng, (F, CANONICAL_VERTICES, 3), session.rate, synth.TISSUE_TIME_S,
+                            1.0)
+    tissue = np.matmul(session.tissue, z) * (session.tissue_rms_mm * onset)
+    if extension is not None:
+        tissue = np.matmul(extension, tissue)
+    n_labels = len(session.labels)
+    pts = np.broadcast_to(session.rest, (F, n_labels, 3)).copy()
+    pts[:, :V] += (courses @ session.fields.reshape(K, -1)).reshape(F, V, 3) + tissue
+    # noise drawn vertex-major, so the first 468 vertices' noise does not depend on V
+    pts[:, V:] += nrng.normal(0.0, session.noise_axis, (F, n_labels - V, 3))
+    pts[:, :V] += nrng.normal(0.0, session.noise_axis, (V, F, 3)).transpose(1, 0, 2)
+    return pts
 
 
 def write_dense_subject(subject, out_dir: str | os.PathLike, subject_id: str,

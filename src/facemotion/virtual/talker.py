@@ -317,10 +317,17 @@ def influence_fields(neutral: np.ndarray, anatomy: np.ndarray | None = None,
     p = np.asarray(neutral, float)
     a = p if anatomy is None else np.asarray(anatomy, float)
     c = {k: a[int(v) - 1, :2] for k, v in _ANATOMY.items()}
-    x, y, z = p[:, 0], p[:, 1], p[:, 2]
     D = np.zeros((len(SOURCES), len(p), 3))
+    _jaw_fields(D, p, c, jaw_side)
+    _lip_fields(D, p, c)
+    _upper_face_fields(D, p, c)
+    return D
+
+
+def _jaw_fields(D: np.ndarray, p: np.ndarray, c: dict, jaw_side: np.ndarray | None) -> None:
+    """Jaw opening and lateral deviation of the jaw, in D."""
+    y, z = p[:, 1], p[:, 2]
     mouth_y = 0.5 * (c["upper_lip"][1] + c["lower_lip"][1])
-    mid = np.array([0.0, mouth_y])
     # jaw opening: everything below the mouth line rotates down and back about the jaw
     # joints (axis along x through y = 10, z = -40; JAW_RAD_PER_UNIT per unit), the corners half;
     # the skin of the lower cheeks is pulled with it; the upper cheeks rise slightly
@@ -334,6 +341,19 @@ def influence_fields(neutral: np.ndarray, anatomy: np.ndarray | None = None,
     D[_K["jaw_open"], :, 2] = 0.6 * theta * (y - 10.0) * below
     for side in ("left_cheek", "right_cheek"):
         D[_K["jaw_open"], :, 1] += 0.7 * _lobe(p, c[side] + [np.sign(c[side][0]) * 14, 14], 12)
+    # lateral deviation of the jaw: the mandible (and the lower lip on it) turns about a
+    # vertical axis through the jaw joints (x = 0, z = -40), the chin about 1 mm per unit;
+    # the skin of the lower cheeks half as much
+    yaw = (below + 0.5 * stretch) / 105.0
+    D[_K["jaw_lateral"], :, 0] = yaw * (z + 40.0)
+    D[_K["jaw_lateral"], :, 2] = -yaw * p[:, 0]
+
+
+def _lip_fields(D: np.ndarray, p: np.ndarray, c: dict) -> None:
+    """Lip protrusion, corner retractions, upper-lip raise, lower-lip depression and chin
+    raise, in D."""
+    x = p[:, 0]
+    mid = np.array([0.0, 0.5 * (c["upper_lip"][1] + c["lower_lip"][1])])
     # lip protrusion: lips and the skin round them forward and towards the midline
     m = _lobe(p, mid, 18, 12)
     D[_K["lip_protrusion"], :, 2] = 4.0 * m
@@ -361,6 +381,15 @@ def influence_fields(neutral: np.ndarray, anatomy: np.ndarray | None = None,
     D[k, :, 2] = 1.4 * g - 0.6 * _lobe(p, c["lower_lip"] + [0, -16], 14, 7)
     for side in ("left_cheek", "right_cheek"):
         D[k, :, 1] += 0.5 * _lobe(p, c[side] + [np.sign(c[side][0]) * 12, -4], 12)
+    # chin raise (mentalis): the skin of the chin up and forward, pushing the lower lip up
+    k = _K["chin_raise"]
+    g = _lobe(p, c["chin"], CHIN_RAISE_WIDTH_MM)
+    D[k, :, 1] = CHIN_RAISE_MM * g + 0.8 * _lobe(p, c["lower_lip"], 12, 5)
+    D[k, :, 2] = 0.6 * CHIN_RAISE_MM * g + 0.6 * _lobe(p, c["lower_lip"], 12, 5)
+
+
+def _upper_face_fields(D: np.ndarray, p: np.ndarray, c: dict) -> None:
+    """Brow raises, blinks and the cheek raise, in D."""
     # brow raises (left, right): brows and forehead up; the upper lid follows a little
     for k, side, lid in ((_K["left_brow_raise"], "left_brow", "left_lid"),
                          (_K["right_brow_raise"], "right_brow", "right_lid")):
@@ -382,18 +411,6 @@ def influence_fields(neutral: np.ndarray, anatomy: np.ndarray | None = None,
         D[k, :, 0] += 1.2 * np.sign(c[side][0]) * g
         D[k, :, 1] += 2.2 * g
         D[k, :, 2] += 1.2 * g
-    # lateral deviation of the jaw: the mandible (and the lower lip on it) turns about a
-    # vertical axis through the jaw joints (x = 0, z = -40), the chin about 1 mm per unit;
-    # the skin of the lower cheeks half as much
-    yaw = (below + 0.5 * stretch) / 105.0
-    D[_K["jaw_lateral"], :, 0] = yaw * (z + 40.0)
-    D[_K["jaw_lateral"], :, 2] = -yaw * x
-    # chin raise (mentalis): the skin of the chin up and forward, pushing the lower lip up
-    k = _K["chin_raise"]
-    g = _lobe(p, c["chin"], CHIN_RAISE_WIDTH_MM)
-    D[k, :, 1] = CHIN_RAISE_MM * g + 0.8 * _lobe(p, c["lower_lip"], 12, 5)
-    D[k, :, 2] = 0.6 * CHIN_RAISE_MM * g + 0.6 * _lobe(p, c["lower_lip"], 12, 5)
-    return D
 
 
 def _bumps(t: np.ndarray, times, widths, amps) -> np.ndarray:
@@ -577,12 +594,66 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
     them. In S1, marker 13 is missing after the first frame of every sentence
     (``truth['lost_13']``), whatever ``occlusions`` says.
     """
+    n, duration = _checked_settings(design, n_sentences, sentence_duration, rate, noise_mm,
+                                    head_rotation_deg, head_translation_mm, tissue_rms_mm)
+    talker = _design_talker(design, talker_seed)
+    ts = DESIGNS[design].talker if talker_seed is None else int(talker_seed)
+    stream = DESIGNS[design].rng_stream
+    rng = np.random.default_rng([seed, stream])
+    D = influence_fields(talker.neutral, talker.anatomy) * talker.strengths[:, None, None]
+    labels = talker.labels + HEAD_LABELS
+    n_face = len(talker.labels)
+    i11, i13 = talker.labels.index("11"), talker.labels.index("13")
+    session = Session(
+        labels=labels, rest=np.concatenate([talker.neutral, talker.head_band]), fields=D,
+        tissue=tissue_factor(talker.neutral), rate=rate, duration=duration,
+        tempo=1.0 + rng.uniform(-SESSION_TEMPO, SESSION_TEMPO), noise_axis=noise_mm / np.sqrt(3.0),
+        tissue_rms_mm=tissue_rms_mm, rot_rms=np.deg2rad(head_rotation_deg),
+        head_translation_mm=head_translation_mm)
+    orng = np.random.default_rng([seed, 99, stream])
+    occludable = [j for j in range(n_face) if j not in (i11, i13)]
+    recs, parts = [], []
+    for s in range(n):
+        courses, tempo = perform_sentence(session, s, rng)
+        F = courses.shape[0]
+        pts = _face_points(session, courses, rng, n_face)
+        motion = head_motion(session, F, rng)
+        moved = move_head(pts, motion)
+        missing = _occlusions(F, len(labels), rate, orng, occludable) if occlusions else (
+            np.zeros((F, len(labels)), bool))
+        lost = np.zeros(F, bool)
+        if design == "S1":              # calibration item 3: 13 tracked in the rest frame only
+            lost[1:] = True
+            missing[:, i13] |= lost
+        moved[missing] = np.nan
+        recs.append(Recording(labels, moved, rate, f"{design}_s{s + 1:02d}"))
+        parts.append({"courses": courses, "head": motion, "tempo": tempo, "missing": missing,
+                      "lost": lost})
+    names = [r.source for r in recs]
+    truth = {
+        "labels": np.array(labels), "neutral": session.rest, "anatomy": talker.anatomy,
+        "sources": np.array(SOURCES), "fields": D, "strengths": talker.strengths,
+        "names": np.array(names), "script_index": np.arange(n),
+        **_sentence_truth(parts),
+        "head_pivot": HEAD_PIVOT.copy(), "missing": np.concatenate([p["missing"] for p in parts]),
+        "lost_13": np.concatenate([p["lost"] for p in parts]),
+        "noise_per_axis_mm": np.array(session.noise_axis),
+        "tissue_rms_mm": np.array(float(tissue_rms_mm)),
+        "tissue_length_mm": np.array(TISSUE_LENGTH_MM),
+        "rate": np.array(float(rate)), "talker_seed": np.array(ts), "seed": np.array(seed),
+    }
+    return SimulatedSubject(design, recs, names, list(HEAD_LABELS), truth)
+
+
+def _checked_settings(design: str, n_sentences, sentence_duration, rate: float,
+                      noise_mm: float, head_rotation_deg: float, head_translation_mm: float,
+                      tissue_rms_mm: float) -> tuple[int, tuple[float, float]]:
+    """The number of sentences and the (low, high) script duration, every setting checked."""
     _check_design(design)
     n = n_sentences if n_sentences is not None else DESIGNS[design].sentences
     if n is None or int(n) < 1:
         raise InputError(f"virtual subject design {design!r}: n_sentences must be >= 1, "
                          f"got {n_sentences}")
-    n = int(n)
     try:
         lo, hi = (float(v) for v in sentence_duration)
     except (TypeError, ValueError):
@@ -596,78 +667,90 @@ def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
     if min(noise_mm, head_rotation_deg, head_translation_mm, tissue_rms_mm) < 0:
         raise InputError("virtual subject: noise_mm, tissue_rms_mm, head_rotation_deg and "
                          "head_translation_mm must be >= 0")
-    talker = _design_talker(design, talker_seed)
-    ts = DESIGNS[design].talker if talker_seed is None else int(talker_seed)
-    stream = DESIGNS[design].rng_stream
-    rng = np.random.default_rng([seed, stream])
-    K = len(SOURCES)
-    D = influence_fields(talker.neutral, talker.anatomy) * talker.strengths[:, None, None]
-    labels = talker.labels + HEAD_LABELS
-    n_face = len(talker.labels)
-    i11, i13 = talker.labels.index("11"), talker.labels.index("13")
-    W = tissue_factor(talker.neutral)
-    noise_axis = noise_mm / np.sqrt(3.0)
-    rest = np.concatenate([talker.neutral, talker.head_band])
-    rot_rms = np.deg2rad(head_rotation_deg)
-    orng = np.random.default_rng([seed, 99, stream])
-    occludable = [j for j in range(n_face) if j not in (i11, i13)]
-    session_tempo = 1.0 + rng.uniform(-SESSION_TEMPO, SESSION_TEMPO)
-    recs, names, truth_s, truth_head, truth_miss, truth_lost, tempos = [], [], [], [], [], [], []
-    for s in range(n):
-        script = sentence_script(s, (lo, hi))
-        tempo = session_tempo * float(np.exp(rng.normal(0.0, 0.04)))
-        gains = np.exp(rng.normal(0.0, 0.12, K))
-        courses = perform(script, rng, rate, tempo, gains)
-        F = courses.shape[0]
-        onset = _onset(F, rate)[:, None]
-        # tissue motion: smooth in time, spatially correlated over the face (per axis)
-        z = _smooth_noise(rng, (F, n_face, 3), rate, TISSUE_TIME_S, 1.0)
-        tissue = np.matmul(W, z) * (tissue_rms_mm * onset[:, :, None])     # W z per axis
-        pts = np.broadcast_to(rest, (F, len(labels), 3)).copy()
-        pts[:, :n_face] += (courses @ D.reshape(K, -1)).reshape(F, n_face, 3) + tissue
-        pts += rng.normal(0.0, noise_axis, pts.shape)              # measurement noise
-        # rigid head motion: a static pose plus smooth motion (rotation vector, mm)
-        rotvec = rng.normal(0.0, 0.6 * rot_rms, 3) + _smooth_noise(rng, (F, 3), rate, 0.35,
-                                                                   rot_rms)
-        trans = rng.normal(0.0, 0.5 * head_translation_mm, 3) + _smooth_noise(
-            rng, (F, 3), rate, 0.35, head_translation_mm)
-        from scipy.spatial.transform import Rotation  # here: not for synth.REGIONS
+    return int(n), (lo, hi)
 
-        R = Rotation.from_rotvec(rotvec).as_matrix()
-        moved = np.matmul(pts - HEAD_PIVOT, R.transpose(0, 2, 1)) + (HEAD_PIVOT + trans[:, None])
-        missing = np.zeros((F, len(labels)), bool)
-        if occlusions:
-            for prob, (g0, g1) in ((0.25, (3, 12)), (1 / 12, (0.3 * rate, 0.6 * rate))):
-                g = int(orng.integers(int(g0), int(g1) + 1))
-                if orng.random() < prob and F - 5 - g > 10:
-                    start = int(orng.integers(10, F - 5 - g))
-                    missing[start:start + g, int(orng.choice(occludable))] = True
-        lost = np.zeros(F, bool)
-        if design == "S1":              # calibration item 3: 13 tracked in the rest frame only
-            lost[1:] = True
-            missing[:, i13] |= lost
-        moved[missing] = np.nan
-        name = f"{design}_s{s + 1:02d}"
-        recs.append(Recording(labels, moved, rate, name))
-        truth_miss.append(missing)
-        truth_lost.append(lost)
-        names.append(name)
-        truth_s.append(courses)
-        truth_head.append(np.concatenate([rotvec, trans], axis=1))
-        tempos.append(tempo)
-    truth = {
-        "labels": np.array(labels), "neutral": rest, "anatomy": talker.anatomy,
-        "sources": np.array(SOURCES), "fields": D, "strengths": talker.strengths,
-        "names": np.array(names), "script_index": np.arange(n),
-        "sentence_frames": np.array([len(c) for c in truth_s]), "tempo": np.array(tempos),
-        "source_courses": np.concatenate(truth_s), "head_motion": np.concatenate(truth_head),
-        "head_pivot": HEAD_PIVOT.copy(), "missing": np.concatenate(truth_miss),
-        "lost_13": np.concatenate(truth_lost), "noise_per_axis_mm": np.array(noise_axis),
-        "tissue_rms_mm": np.array(float(tissue_rms_mm)),
-        "tissue_length_mm": np.array(TISSUE_LENGTH_MM),
-        "rate": np.array(float(rate)), "talker_seed": np.array(ts), "seed": np.array(seed),
-    }
-    return SimulatedSubject(design, recs, names, list(HEAD_LABELS), truth)
+
+@dataclass(frozen=True)
+class Session:
+    """What the sentences of one simulated session share: the markers, their rest positions
+    (face, then head band), the sources' fields D (K, face markers, 3), the tissue factor W,
+    the session's tempo, and the sizes of the noise, tissue and head motion."""
+
+    labels: list[str]
+    rest: np.ndarray
+    fields: np.ndarray
+    tissue: np.ndarray
+    rate: float
+    duration: tuple[float, float]
+    tempo: float
+    noise_axis: float               # per axis (mm)
+    tissue_rms_mm: float
+    rot_rms: float                  # head rotation, RMS per axis (rad)
+    head_translation_mm: float
+
+
+def perform_sentence(session: Session, s: int, rng: np.random.Generator
+                     ) -> tuple[np.ndarray, float]:
+    """Sentence ``s`` of the corpus performed in the session: the sources' time courses
+    (F, K) and the sentence's tempo."""
+    script = sentence_script(s, session.duration)
+    tempo = session.tempo * float(np.exp(rng.normal(0.0, 0.04)))
+    gains = np.exp(rng.normal(0.0, 0.12, session.fields.shape[0]))
+    return perform(script, rng, session.rate, tempo, gains), tempo
+
+
+def _face_points(session: Session, courses: np.ndarray, rng: np.random.Generator,
+                 n_face: int) -> np.ndarray:
+    """Every marker (F, M, 3) in the head frame: rest + sources' fields + tissue + noise."""
+    F, K = courses.shape
+    onset = _onset(F, session.rate)[:, None]
+    # tissue motion: smooth in time, spatially correlated over the face (per axis)
+    z = _smooth_noise(rng, (F, n_face, 3), session.rate, TISSUE_TIME_S, 1.0)
+    tissue = np.matmul(session.tissue, z) * (session.tissue_rms_mm * onset[:, :, None])  # W z
+    pts = np.broadcast_to(session.rest, (F, len(session.labels), 3)).copy()
+    pts[:, :n_face] += (courses @ session.fields.reshape(K, -1)).reshape(F, n_face, 3) + tissue
+    pts += rng.normal(0.0, session.noise_axis, pts.shape)              # measurement noise
+    return pts
+
+
+def head_motion(session: Session, F: int, rng: np.random.Generator) -> np.ndarray:
+    """A sentence's rigid head motion (F, 6): rotation vector (rad), translation (mm), each a
+    static pose plus smooth motion."""
+    rotvec = rng.normal(0.0, 0.6 * session.rot_rms, 3) + _smooth_noise(
+        rng, (F, 3), session.rate, 0.35, session.rot_rms)
+    trans = rng.normal(0.0, 0.5 * session.head_translation_mm, 3) + _smooth_noise(
+        rng, (F, 3), session.rate, 0.35, session.head_translation_mm)
+    return np.concatenate([rotvec, trans], axis=1)
+
+
+def move_head(points: np.ndarray, motion: np.ndarray) -> np.ndarray:
+    """Points (F, M, 3) of the head frame moved by the head motion (rows of ``head_motion``):
+    p = R (q - c) + c + T, the inverse of :func:`head_frame_points`."""
+    from scipy.spatial.transform import Rotation  # here: not for synth.REGIONS
+
+    R = Rotation.from_rotvec(motion[:, :3]).as_matrix()
+    return np.matmul(points - HEAD_PIVOT, R.transpose(0, 2, 1)) + (HEAD_PIVOT + motion[:, None, 3:])
+
+
+def _occlusions(F: int, n_markers: int, rate: float, orng: np.random.Generator,
+                occludable: list[int]) -> np.ndarray:
+    """(F, markers) bool: a short gap in a quarter of the sentences, a long one in one in
+    twelve, each in a random occludable marker, away from the sentence's ends."""
+    missing = np.zeros((F, n_markers), bool)
+    for prob, (g0, g1) in ((0.25, (3, 12)), (1 / 12, (0.3 * rate, 0.6 * rate))):
+        g = int(orng.integers(int(g0), int(g1) + 1))
+        if orng.random() < prob and F - 5 - g > 10:
+            start = int(orng.integers(10, F - 5 - g))
+            missing[start:start + g, int(orng.choice(occludable))] = True
+    return missing
+
+
+def _sentence_truth(parts: list[dict]) -> dict:
+    """The per-sentence truth arrays of a session, the sentences one after another."""
+    return {"sentence_frames": np.array([len(p["courses"]) for p in parts]),
+            "tempo": np.array([p["tempo"] for p in parts]),
+            "source_courses": np.concatenate([p["courses"] for p in parts]),
+            "head_motion": np.concatenate([p["head"] for p in parts])}
 
 
 def head_frame_points(points: np.ndarray, head_motion: np.ndarray) -> np.ndarray:
