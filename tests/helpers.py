@@ -42,3 +42,47 @@ class Names(list):
 
     def __getitem__(self, key):
         return self._named[key] if isinstance(key, str) else super().__getitem__(key)
+
+
+def assert_laid_out(fig):
+    """An independent geometric check of a figure's layout, from the rendered extents at the
+    report's resolution: every text is inside the figure; no two texts overlap (the small data
+    labels a figure leaves out of its layout, ``in_layout=False``, excepted); no text outside
+    the axes (tick labels, axis labels, titles, figure texts) covers a panel's frame."""
+    from unittest import mock
+
+    import matplotlib.text
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from facemotion.plots.save import FIGURE_DPI
+
+    fig.set_dpi(FIGURE_DPI)
+    canvas = FigureCanvasAgg(fig)
+    drawn = []  # the texts a draw draws (not, e.g., the labels of ticks out of view)
+    draw = matplotlib.text.Text.draw
+
+    def record(self, renderer):
+        drawn.append(self)
+        return draw(self, renderer)
+
+    with mock.patch.object(matplotlib.text.Text, "draw", record):
+        canvas.draw()
+    r = canvas.get_renderer()
+    box = fig.bbox
+    texts = [t for t in dict.fromkeys(drawn)
+             if t.get_visible() and t.get_text() and t.get_in_layout()]
+    extents = [matplotlib.text.Text.get_window_extent(t, r) for t in texts]  # no arrows
+    for t, e in zip(texts, extents, strict=True):
+        assert (e.x0 >= box.x0 - 1 and e.x1 <= box.x1 + 1 and e.y0 >= box.y0 - 1
+                and e.y1 <= box.y1 + 1), f"outside the figure: {t.get_text()!r}"
+    for i, (t, e) in enumerate(zip(texts, extents, strict=True)):
+        for u, f in zip(texts[i + 1:], extents[i + 1:], strict=True):
+            assert not e.overlaps(f), f"overlap: {t.get_text()!r} and {u.get_text()!r}"
+    inside = {id(t) for ax in fig.axes for t in ax.texts}
+    inside |= {id(t) for ax in fig.axes if ax.get_legend() for t in ax.get_legend().findobj(
+        matplotlib.text.Text)}
+    frames = [ax.get_window_extent(r) for ax in fig.axes if ax.axison]
+    for t, e in zip(texts, extents, strict=True):
+        if id(t) not in inside:
+            for frame in frames:
+                assert not e.overlaps(frame), f"covers a panel: {t.get_text()!r}"

@@ -114,9 +114,8 @@ def test_virtual_tables(virtual_rigid):
     ratio = rec["mse_per_dof_model_units2"] / rec["mse_per_dof_mm2"]
     k2 = res.unit_scale ** 2
     assert np.all((ratio >= k2.min() * (1 - 1e-9)) & (ratio <= k2.max() * (1 + 1e-9)))
-    s = res.noise_sensitivity
-    exact = s[(s.noise_var_model_units2 == 0) & (s.point_set == "mesh_nodes")
-              & (s.view != "xyz_8_points") & (s.covariance == "full_covariance")]
+    exact = rec[(rec.noise == "noise_free") & (rec.point_set == "mesh_nodes")
+                & (rec.view != "xyz_8_points") & (rec.covariance == "full_covariance")]
     # the fitted displacements have rank <= 48 < 320 observed DOF: full covariance is exact
     assert exact["mse_per_dof_model_units2"].max() < 1e-12
     assert res.mode_shapes.shape == (10, res.mesh.n_nodes, 3)

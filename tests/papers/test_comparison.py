@@ -156,7 +156,7 @@ def test_figure(tmp_path):
 def test_figure_layout_keeps_every_text_inside_and_apart():
     """The figure's fixed layout (no constrained layout): the shared geometric check of the
     figure tests, with Table I and without it."""
-    from test_plots import assert_laid_out
+    from helpers import assert_laid_out
 
     from facemotion.plots.comparison import plot_paper_comparison
 

@@ -134,19 +134,27 @@ MAPPING: dict[str, list[tuple]] = {
                          ("facemotion.plots.animation:iter_frames", "grid_n"),
                          ("facemotion.plots.animation:render_frames", "grid_n"),
                          ("facemotion.plots.animation:still_frame", "grid_n")],
-    "lips.n_modes": [("facemotion.lips.pipeline:run_lip_model", "n_modes")],
+    "lips.n_modes": [("facemotion.lips.pipeline:run_lip_model", "n_modes"),
+                     ("facemotion.lips.pipeline:LipSettings", "n_modes")],
     "lips.normalisation": [("facemotion.lips.pipeline:run_lip_model", "normalisation"),
                            ("facemotion.lips.pipeline:virtual_lip_study", "normalisation"),
-                           ("facemotion.lips.pipeline:grid_lip_study", "normalisation")],
+                           ("facemotion.lips.pipeline:grid_lip_study", "normalisation"),
+                           ("facemotion.lips.pipeline:LipSettings", "normalisation")],
     "lips.model_extent": [("facemotion.lips.pipeline:run_lip_model", "model_extent"),
+                          ("facemotion.lips.pipeline:LipSettings", "model_extent"),
                           ("facemotion.lips.mesh:PAPER_MODEL_EXTENT", None)],
-    # The library calls the schema's 'auto' 'ppca' (scripts/fit_lip_model.py translates).
+    # The library calls the schema's 'auto' 'ppca' (facemotion.study.settings.lip_settings
+    # translates).
     "lips.noise_var": [("facemotion.lips.pipeline:run_lip_model", "noise_var",
-                        {"auto": "ppca"})],
-    "lips.noise_var_sweep": [("facemotion.lips.pipeline:run_lip_model", "noise_grid")],
+                        {"auto": "ppca"}),
+                       ("facemotion.lips.pipeline:LipSettings", "noise_var", {"auto": "ppca"})],
+    "lips.noise_var_sweep": [("facemotion.lips.pipeline:run_lip_model", "noise_grid"),
+                             ("facemotion.lips.pipeline:LipSettings", "noise_grid")],
     "lips.E": [("facemotion.lips.pipeline:run_lip_model", "E"),
+               ("facemotion.lips.pipeline:LipSettings", "E"),
                ("facemotion.lips.fem:assemble_stiffness", "E")],
     "lips.nu": [("facemotion.lips.pipeline:run_lip_model", "nu"),
+                ("facemotion.lips.pipeline:LipSettings", "nu"),
                 ("facemotion.lips.fem:assemble_stiffness", "nu")],
     "figures.formats": [("facemotion.plots.save:figure_paths", "formats")],
     "datasets.*.mesh_labels": [("facemotion.plots.face_mesh:DEFAULT_LABELS", None)],
@@ -154,12 +162,7 @@ MAPPING: dict[str, list[tuple]] = {
 
 #: Library defaults still to be brought to the schema's: each is expected to fail (strict), so
 #: the fix that makes it pass also removes it from here.
-KNOWN_DIFFERENCES = {
-    # 0.25 s in the library, 0.5 s in the study: a library caller reports shorter copies.
-    ("qr.min_copy_s", "facemotion.regions.redundancy:find_redundant_markers"),
-    # the library's grid starts with the noise-free 0.0, which the study reports apart
-    ("lips.noise_var_sweep", "facemotion.lips.pipeline:run_lip_model"),
-}
+KNOWN_DIFFERENCES: set[tuple[str, str]] = set()
 
 #: Settings that no library function takes as a default: the workflow's own (paths, names,
 #: which jobs run, table sizes) or ones whose library counterpart is deliberately different.
@@ -280,7 +283,8 @@ def test_no_other_library_parameter_named_like_a_setting_disagrees(schema):
     mapped = {(t[0], t[1]) for targets in MAPPING.values() for t in targets}
     problems = []
     for module, qualname, param, default in library_parameters():
-        if param not in by_name or (f"{module}:{qualname}", param) in mapped:
+        if param not in by_name or (f"{module}:{qualname.removesuffix('.__init__')}",
+                                    param) in mapped:
             continue
         if (module, param) in NOT_THE_SETTING or plain(default) in by_name[param]:
             continue
@@ -302,6 +306,8 @@ def test_the_comparison_rejects_a_schema_that_moved(schema):
         "(max_interp_s=...) 0.1",
         "gaps.max_interp_s: schema 0.2, facemotion.ingest.gaps:fill_gaps(max_interp_s=...) 0.1",
         "lips.noise_var: schema 0.001, facemotion.lips.pipeline:run_lip_model(noise_var=...) "
+        "'ppca'",
+        "lips.noise_var: schema 0.001, facemotion.lips.pipeline:LipSettings(noise_var=...) "
         "'ppca'",
         "qr.agreement_k: schema [5, 20], facemotion.ranking.stability:stability(k_agree=...) "
         "[5, 10]",

@@ -54,7 +54,7 @@ VIEWS = ("xyz_8_points", "yz_all_points", "xy_all_points")
 VIEW_AXES = {"xyz_8_points": (0, 1, 2), "yz_all_points": (1, 2), "xy_all_points": (0, 1)}
 POINT_SETS = ("tracked_points", "mesh_nodes")
 NOISES = ("noise_free", "regularised")
-NOISE_GRID = (0.0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
+NOISE_GRID = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
 
 # Basu & Pentland (1997), Table 1: reconstruction error per DOF in the model's normalised units,
 # (first 10 modes, full covariance).

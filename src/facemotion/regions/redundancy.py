@@ -83,7 +83,7 @@ def find_redundant_markers(
     row_sentence,
     rate: float,
     noise_mm: float = 0.5,
-    min_duration_s: float = 0.25,
+    min_duration_s: float = 0.5,
     max_residual_fraction: float = 0.4,
     coefficient_range: tuple[float, float] = (0.5, 2.0),
     sentence_names: Sequence[str] | None = None,
@@ -134,7 +134,7 @@ class CopyCriteria:
 
     rate: float
     noise_mm: float = 0.5
-    min_duration_s: float = 0.25
+    min_duration_s: float = 0.5
     max_residual_fraction: float = 0.4
     coefficient_range: tuple[float, float] = (0.5, 2.0)
 
