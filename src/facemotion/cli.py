@@ -267,7 +267,7 @@ def docs(check: bool, results: str, repo: str, shared_data: str | None) -> None:
     shared = Path(shared_data) if shared_data else root.parent / "shared" / "data"
     out = run(root, Path(results), shared, check=check)
     for line in out.skipped:
-        click.echo(f"skipped: {line}")
+        click.echo(line)
     if check:
         for line in out.problems + out.differs:
             click.echo(line)
