@@ -617,20 +617,29 @@ def _schema(src: Sources) -> dict:
         return yaml.safe_load(fh)
 
 
-@block(DATA_PAGE, "validation-margins", ["paper"],
+@block(DATA_PAGE, "validation-margins", ["paper", "real"],
        "facemotion.ingest.validation.margins on the shared data and results/paper/virtual; "
-       "limits: workflow/schemas/config.schema.yaml", needs_shared_data=True)
+       "shape differences from results/{real,paper}/<dataset>/data/sentences.tsv; limits: "
+       "workflow/schemas/config.schema.yaml", needs_shared_data=True)
 def _validation_margins(src: Sources) -> str:
     from facemotion.ingest.validation import margins
     from facemotion.io.registry import read_recording
 
     assert src.shared_data is not None
-    groups = [("AnimFace (shared data, C3D)", sorted((src.shared_data / "animface").glob("*.c3d"))),
-              ("GRID (shared data, TRC)", sorted((src.shared_data / "grid").glob("*.trc"))),
+
+    def shapes(study: str, prefix: str) -> list[float]:
+        root = src.root(study)
+        return [float(x) for folder in _datasets(root).values() if folder.startswith(prefix)
+                for x in _tsv(root / folder / "data" / "sentences.tsv")["shape_rms_mm"]]
+
+    groups = [("AnimFace (shared data, C3D)",
+               sorted((src.shared_data / "animface").glob("*.c3d")), shapes("real", "animface")),
+              ("GRID (shared data, TRC)", sorted((src.shared_data / "grid").glob("*.trc")),
+               shapes("real", "grid")),
               ("virtual S1, S2a, S2b (results/paper/virtual)",
-               sorted(src.root("paper").glob("virtual/S*/*.c3d")))]
-    rows, speeds, dists, spreads = [], [], [], []
-    for name, files in groups:
+               sorted(src.root("paper").glob("virtual/S*/*.c3d")), shapes("paper", ""))]
+    rows, speeds, dists, spreads, shape_all = [], [], [], [], []
+    for name, files, shape in groups:
         if not files:
             raise InputError(f"no files for {name}")
         ms = [margins(read_recording(f)) for f in files]
@@ -641,22 +650,27 @@ def _validation_margins(src: Sources) -> str:
         speeds += sp
         dists += di
         spreads += sr
+        shape_all += shape
         rows.append([name, str(len(files)), ", ".join(f"{r:g}" for r in rates),
                      f"{max(sp):.0f}", f"{max(di):.0f}",
-                     _range(sr, lambda x: f"{x:.0f}")])
+                     _range(sr, lambda x: f"{x:.0f}"), f"{max(shape):.1f}"])
     props = _schema(src)["properties"]
-    speed_lim = props["gaps"]["properties"]["max_speed_mm_s"]["default"]
-    dist_lim = props["gaps"]["properties"]["max_distance_mm"]["default"]
-    lo, hi = props["checks"]["properties"]["face_spread_mm"]["default"]
-    rows.append(["**default limit** (docs/settings.md)", "", "",
-                 f"{speed_lim:g} (`gaps.max_speed_mm_s`)",
+    gaps, checks = props["gaps"]["properties"], props["checks"]["properties"]
+    speed_lim = gaps["max_speed_mm_s"]["default"]
+    dist_lim = gaps["max_distance_mm"]["default"]
+    lo, hi = checks["face_spread_mm"]["default"]
+    shape_lim = checks["max_shape_rms_mm"]["default"]
+    rows.append(["**default limit**", "", "", f"{speed_lim:g} (`gaps.max_speed_mm_s`)",
                  f"{dist_lim:g} (`gaps.max_distance_mm`)",
-                 f"{lo:g}-{hi:g} (`checks.face_spread_mm`)"])
+                 f"{lo:g}-{hi:g} (`checks.face_spread_mm`)",
+                 f"{shape_lim:g} (`checks.max_shape_rms_mm`)"])
     rows.append(["**limit / largest measured**", "", "", f"{speed_lim / max(speeds):.1f}x",
                  f"{dist_lim / max(dists):.1f}x",
-                 f"{min(spreads) / lo:.1f}x below, {hi / max(spreads):.1f}x above"])
+                 f"{min(spreads) / lo:.1f}x below, {hi / max(spreads):.1f}x above",
+                 f"{shape_lim / max(shape_all):.0f}x"])
     return _table(["data", "takes", "rate (Hz)", "fastest speed (mm/s)",
-                   "farthest from the face centre (mm)", "spread (mm)"], rows, "lrrrrr")
+                   "farthest from the face centre (mm)", "spread (mm)",
+                   "shape difference between takes (mm RMS)"], rows, "lrrrrrr")
 
 
 # docs/settings.md -----------------------------------------------------------------------------
