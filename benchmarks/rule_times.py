@@ -92,7 +92,7 @@ def replace_between_markers(text: str, new: str, name: str = "rule-times") -> st
         raise SystemExit(f"benchmarks: markers {start} ... {end} not found")
     head, rest = text.split(start, 1)
     _, tail = rest.split(end, 1)
-    return f"{head}{start}\n{new}\n\n{end}{tail}"
+    return f"{head}{start}\n\n{new}\n\n{end}{tail}"
 
 
 def update_page(path, new: str, name: str = "rule-times") -> None:

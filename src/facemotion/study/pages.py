@@ -231,12 +231,10 @@ def _readme_summary(src: Sources) -> str:
                    "held-out error, k = 10"], rows, "lrll")]
     table = _tsv(src.root("paper") / "tables" / "paper_comparison.tsv")
     counts = summary_counts(table[table["calibration"] != "yes"])
-    totals = counts.groupby("paper")[list(VERDICTS)].sum()
-    crow = []
-    for paper, r in totals.iterrows():
-        crow.append([paper] + [str(int(r[v])) for v in VERDICTS])
+    crow = [[r["paper"], r["part"]] + [str(int(r[v])) for v in VERDICTS]
+            for _, r in counts.iterrows()]
     out += ["", "The papers' quantitative statements that were not calibration targets, by "
-            "verdict:", "", _table(["paper", *VERDICTS], crow, "lrrrr")]
+            "verdict:", "", _table(["paper", "statements", *VERDICTS], crow, "llrrrr")]
     return "\n".join(out)
 
 
@@ -914,7 +912,8 @@ def header(b: Block) -> str:
 
 def render(b: Block, src: Sources) -> str:
     """The text between a block's markers."""
-    return f"{header(b)}\n\n{b.render(src).strip(chr(10))}\n\n"
+    # blank lines round the header: every renderer then takes it as a comment of its own
+    return f"\n{header(b)}\n\n{b.render(src).strip(chr(10))}\n\n"
 
 
 def _missing_source(b: Block, src: Sources) -> str | None:
