@@ -886,7 +886,6 @@ FIGURES: list[Figure] = [
     Figure("real_r_values.png", "real", "figures/r_values.png"),
     Figure("real_sweep_grid_landmarks.png", "real", "figures/sweep_grid_landmarks.png"),
     Figure("dense_regions_dense468.png", "dense", "dense468/fit/regions_k10.png"),
-    Figure("dense_r_values.png", "dense", "figures/r_values.png"),
 ]
 
 
