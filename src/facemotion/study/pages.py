@@ -47,7 +47,8 @@ EXTERNAL = {
     "bench-qr": "make bench (benchmarks/bench_qr.py)",
     "bench-dense": "make bench (benchmarks/bench_dense.py)",
     "rule-times": "make bench (benchmarks/bench_study.py)",
-    "restructure": "a benchmark of the study before and after one job per dataset (none yet)",
+    "restructure": "no command yet (a benchmark of the default study before and after one job "
+                   "per dataset will write it)",
 }
 FIGURE_DIR = "docs/figures"
 #: The studies the docs read, with the command that makes each.
