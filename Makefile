@@ -6,7 +6,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= 2
 
-.PHONY: study test real dense smoke talkers report real-report dense-report smoke-report talkers-report bench lint venv cluster clean constraints docs
+.PHONY: study test real dense smoke talkers report real-report dense-report smoke-report talkers-report bench lint venv cluster clean constraints docs pages pages-check
 
 $(BIN)/python:
 	@command -v $(PY) >/dev/null 2>&1 || { echo "need $(PY) (Python 3.11)"; exit 1; }
@@ -64,6 +64,15 @@ bench: venv
 # __all__ is the top-level API) and each sub-package with every module in it.
 docs: venv
 	$(BIN)/pdoc -o docs/api facemotion $$(cd src && find facemotion -mindepth 1 -maxdepth 1 -type d ! -name __pycache__ | sort | tr / .)
+
+# The numbers, tables and figures of README.md and docs/ from the studies' results (run
+# `make study real dense` first; a study not run is skipped with a line saying so).
+# pages-check writes nothing and fails on any difference (tests/workflow/test_docs.py).
+pages: venv
+	$(BIN)/facemotion docs
+
+pages-check: venv
+	$(BIN)/facemotion docs --check
 
 lint: venv
 	$(BIN)/snakemake --lint

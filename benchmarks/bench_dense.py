@@ -1,6 +1,6 @@
 """Dense faces at scale: the ranking at the machine's GEMM rate, loading with long gaps, A on
-disk within a memory bound, and the dense cases of issue 12, with baselines measured in the
-same run.
+disk within a memory bound, and dense faces of thousands of points, with baselines measured
+in the same run.
 
     python benchmarks/bench_dense.py [--threads 2] [--reps 5] [--quick] [--only NAME ...]
                                      [--fill-baseline] [--scipy-dense]
@@ -17,17 +17,17 @@ Cases (``--only``):
 ``rank10x``   57 markers at 10x the paper's frames (~600,000 rows): our ranking (Gram route)
               vs scipy's pivoted QR, same threads; the A^T A pass's rate and fraction of the
               GEMM peak for both Gram routes ("rows", "blas") and numpy's ``A.T @ A``.
-              Target (issue 13): >= 20x.
+              Target: >= 20x.
 ``load20k``   a 468-landmark, 20,000-frame TRC with three long gaps (written once): read +
               head alignment + gap filling + A, end to end (wall, CPU-s, peak RSS), against
               pandas' C parser reading the same file's numbers in the same run (children
               interleaved); with ``--fill-baseline`` (always in ``--quick``) also the gap
               filling alone against the previous method (one thin SVD of the whole take with
-              every marker as donor; minutes at full size). Target (issue 13): <= 15 s.
+              every marker as donor; minutes at full size). Target: <= 15 s.
 ``reader``    TRC parse rate (MB/s) and peak RSS / file size, fast path vs the exact
-              line-by-line path (the pre-issue-12 reader's method) on the same file.
+              line-by-line path (the exact reader's method) on the same file.
 ``mem4g``     a 4 GB A written block by block, then ranked from disk in a child process:
-              peak RSS. Target (issue 12): < 1 GiB.
+              peak RSS. Target: < 1 GiB.
 ``dense``     468 x 108,000 frames and 5,023 x 25,000 frames (``--quick``: 1/8 of the
               frames), A on disk -> r_values and the held-out error curve at k_max = 100;
               wall time, peak RSS, the ratio to scipy's pivoted QR where it fits
@@ -169,7 +169,7 @@ def case_load20k(threads, reps, quick, fill_baseline):
         row("load20k", k, parts[k], "s", "inside the end-to-end run")
     row("load20k", "peak_rss_MiB", float(np.median(rss)), "MiB", f"file {mb:.0f} MB")
     row("load20k", "peak_rss_over_file", float(np.median(rss)) * 2**20 / trc.stat().st_size,
-        "x", "issue 12 measured 17x")
+        "x", "the whole recording is held while loading")
     row("load20k", "pandas_read_csv_s", pwall, "s",
         "baseline: pandas' C parser reads the same TRC's numbers (no validation, no A)")
     row("load20k", "pandas_peak_rss_MiB", float(np.median(prss)), "MiB", "baseline")
@@ -268,8 +268,8 @@ def case_dense(threads, reps, quick, scipy_dense):
 
 
 def case_talker(threads, quick):
-    """The randomized route on the dense virtual talker (issue 12: within 1.05x of pivoted
-    QR's residual at k = 10, 50 and 100), in a child: D5023, its sentences loaded by the
+    """The randomized route on the dense virtual talker (target: within 1.05x of pivoted QR's
+    residual at k = 10, 50 and 100), in a child: D5023, its sentences loaded by the
     study's path, training sentences ranked by both routes."""
     n_sent = 8 if quick else 40
     res, peak = child(["talker", str(threads), str(n_sent)])
@@ -470,8 +470,8 @@ def main(argv=None) -> int:
                     help="load20k: also the previous gap filling (minutes at full size)")
     ap.add_argument("--only", nargs="*", default=["peak", "rank10x", "load20k", "reader",
                                                   "mem4g", "dense", "talker"])
-    ap.add_argument("--readme", help="replace the table between the bench-dense markers there "
-                    "with this run's rows")
+    ap.add_argument("--page", help="replace the table between the bench-dense markers there "
+                    "(docs/performance.md) with this run's rows")
     args = ap.parse_args(argv)
     OUT.mkdir(parents=True, exist_ok=True)
     load = os.getloadavg()[0]
@@ -506,18 +506,18 @@ def main(argv=None) -> int:
             fh.write("\t".join(f"{r[c]:.6g}" if isinstance(r[c], float) else str(r[c])
                                for c in cols) + "\n")
     tmp.replace(OUT / "bench_dense.tsv")
-    if args.readme:
+    if args.page:
         sys.path.insert(0, str(Path(__file__).resolve().parent))
-        from rule_times import update_readme
+        from rule_times import update_page
 
-        update_readme(args.readme, readme_table(args, load, load_end), "bench-dense")
+        update_page(args.page, page_table(args, load, load_end), "bench-dense")
     return 0
 
 
-def readme_table(args, load_start: float, load_end: float) -> str:
-    """This run's rows as the README's table (nothing the run did not measure)."""
+def page_table(args, load_start: float, load_end: float) -> str:
+    """This run's rows as docs/performance.md's table (nothing the run did not measure)."""
     lines = [f"Written by `python benchmarks/bench_dense.py --only {' '.join(args.only)} "
-             f"--readme README.md` (part of `make bench`) on {time.strftime('%Y-%m-%d %H:%M')}"
+             f"--page docs/performance.md` (part of `make bench`) on {time.strftime('%Y-%m-%d')}"
              f": {args.threads} BLAS threads, medians of {args.reps} interleaved repetitions"
              f"{', --quick sizes' if args.quick else ''}; load average {load_start:.2f} at the "
              f"start and {load_end:.2f} at the end.", "",

@@ -1,6 +1,7 @@
 """Benchmark of the QR marker analysis against naive baselines measured in the same run.
 
-    python benchmarks/bench_qr.py [--quick] [--strict] [--threads 1] [--readme README.md]
+    python benchmarks/bench_qr.py [--quick] [--strict] [--threads 1]
+                                   [--page docs/performance.md]
 
 Synthetic displacement matrices: 57 markers, 50 sentences, a few smooth sources mixed plus
 0.5 mm noise; paper scale ~30,000 rows (3 x 10,000 frames) and 10x the frames.  Ours and the
@@ -8,8 +9,8 @@ baselines run with the same number of BLAS threads (``--threads``, threadpoolctl
 and the times are medians (time.perf_counter); this machine's GEMM rate at that thread count is
 measured at the start and the end, and the A^T A pass (``facemotion.ranking.gram``) is reported as a
 fraction of it. A "pass" is one A^T A over all the data; one TSQR pass is also timed for
-reference.  Writes benchmarks/out/bench_qr.tsv; with --readme, the README's speed table
-(between the bench-qr markers); with --strict exits 1 if a target is missed.
+reference.  Writes benchmarks/out/bench_qr.tsv; with --page, the speed table in that
+file (between the generated:bench-qr markers); with --strict exits 1 if a target is missed.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import scipy.linalg
 from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from rule_times import update_readme  # noqa: E402
+from rule_times import update_page  # noqa: E402
 
 from facemotion.ranking.gram import gemm_rate, gram, gram_flops  # noqa: E402
 from facemotion.ranking.qr import tsqr_r
@@ -81,7 +82,8 @@ def main(argv=None) -> int:
                     help="BLAS threads for ours and for the baselines alike (default 1, as the "
                     "study's jobs run; scipy's pivoted QR with 2 threads on these tall, narrow "
                     "matrices swings by 2x between runs)")
-    ap.add_argument("--readme", help="replace the table between the bench-qr markers there")
+    ap.add_argument("--page", help="replace the table between the bench-qr markers there "
+                    "(docs/performance.md)")
     args = ap.parse_args(argv)
     reps = 3 if args.quick else 9
     T = args.threads
@@ -173,17 +175,17 @@ def main(argv=None) -> int:
     tmp.replace(out / "bench_qr.tsv")
     conditions = {"threads": T, "peak": (peak0, peak1), "load": (load0, load1),
                   "reps": reps, "quick": args.quick}
-    text = readme_table(rows, conditions)
+    text = page_table(rows, conditions)
     print(text)
-    if args.readme:
-        update_readme(args.readme, text, "bench-qr")
+    if args.page:
+        update_page(args.page, text, "bench-qr")
     missed = [r[0] + "@" + r[1] for r in rows if not r[6]]
     if missed:
         print("targets missed: " + ", ".join(missed), file=sys.stderr)
     return 1 if (missed and args.strict) else 0
 
 
-_ROWS = [  # README row: benchmark, what, baseline, how the value reads
+_ROWS = [  # table row: benchmark, what, baseline, how the value reads
     ("ranking_auto_vs_scipy_pivoted_qr", "marker ranking (one A^T A pass, then LAPACK pivoted "
      "Cholesky; same pivots asserted)", "`scipy.linalg.qr(A, mode=\"r\", pivoting=True)`, "
      "same BLAS threads", "x"),
@@ -206,8 +208,8 @@ def _t(seconds: float) -> str:
     return f"{seconds * 1e3:.3g} ms" if seconds < 1 else f"{seconds:.2f} s"
 
 
-def readme_table(rows, c) -> str:
-    """The README's speed table, from this run's rows only (nothing the run did not measure)."""
+def page_table(rows, c) -> str:
+    """The speed table, from this run's rows only (nothing the run did not measure)."""
     by = {(r[0], r[1]): r for r in rows}
 
     def cell(name, scale, kind):
@@ -233,8 +235,9 @@ def readme_table(rows, c) -> str:
                "error_curve_mean3d_vs_per_k_lstsq": "5x",
                "stability_1000_replicates_seconds": "< 10 s"}
     lines = [
-        f"Written by `python benchmarks/bench_qr.py --readme README.md` (part of `make bench`) "
-        f"on {time.strftime('%Y-%m-%d %H:%M')}: {c['threads']} BLAS "
+        f"Written by `python benchmarks/bench_qr.py --page docs/performance.md` (part of "
+        f"`make bench`) "
+        f"on {time.strftime('%Y-%m-%d')}: {c['threads']} BLAS "
         f"thread{'s' if c['threads'] > 1 else ''} for ours and scipy "
         f"alike, medians of {c['reps']} interleaved repetitions{' (--quick)' if c['quick'] else ''}"
         f"; this machine's GEMM rate {c['peak'][0]:.1f} GFLOP/s at the start and "

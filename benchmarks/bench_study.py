@@ -1,7 +1,7 @@
 """Time the full default study from scratch, with a per-rule time table.
 
     python benchmarks/bench_study.py [--repeat N] [--cores 2] [--configfile FILE]
-                                     [--config KEY=VALUE ...] [--readme README.md]
+                                     [--config KEY=VALUE ...] [--page docs/performance.md]
 
 Runs `snakemake` from scratch in a fresh temporary directory N times (default 1) and reports
 each run's wall time, the median, and the number of jobs. From the last run it builds the
@@ -9,7 +9,7 @@ per-rule table (`benchmarks/rule_times.py`): wall seconds from Snakemake's `benc
 CPU seconds and the start-up share from each job's log (every step logs its process's CPU
 time and how much of it was spent before the step began: Python, Snakemake's preamble,
 imports). Writes benchmarks/out/bench_study.tsv and benchmarks/out/rule_times.md; with
---readme, replaces the table between the rule-times markers in that file.
+--page, replaces the table between the generated:rule-times markers in that file.
 
 Wall time depends on what else the machine runs; CPU sums much less (they still grow when the
 other core is busy, through shared caches and frequency).
@@ -30,7 +30,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from rule_times import read_benchmarks, read_job_cpu, table, update_readme  # noqa: E402
+from rule_times import read_benchmarks, read_job_cpu, table, update_page  # noqa: E402
 
 
 def study_root(workdir: Path) -> Path:
@@ -65,7 +65,8 @@ def main() -> int:
     ap.add_argument("--cores", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=1, help="runs from scratch (median wall)")
     ap.add_argument("--target-s", type=float, default=45.0)
-    ap.add_argument("--readme", help="replace the per-rule table in this file")
+    ap.add_argument("--page", help="replace the per-rule table in this file "
+                    "(docs/performance.md)")
     args = ap.parse_args()
     walls, jobs, rules, cpu = [], -1, {}, {}
     load0 = os.getloadavg()[0]
@@ -91,16 +92,17 @@ def main() -> int:
         f"{name}\t{args.cores}\t{len(walls)}\t{wall:.1f}\t{','.join(f'{w:.1f}' for w in walls)}"
         f"\t{jobs}\t{args.target_s:.0f}\t{verdict}\n")
     (out / "rule_times.md").write_text(text + "\n")
-    if args.readme:
+    if args.page:
         load = os.getloadavg()
-        head = (f"Written by `python benchmarks/bench_study.py --repeat {args.repeat} --readme "
-                f"README.md` (part of `make bench`) on {time.strftime('%Y-%m-%d %H:%M')}: the "
+        head = (f"Written by `python benchmarks/bench_study.py --repeat {args.repeat} --page "
+                f"docs/performance.md` (part of `make bench`) on {time.strftime('%Y-%m-%d')}: "
+                "the "
                 f"{name} from scratch with `--cores {args.cores}`, {len(walls)} run(s) of "
                 f"{jobs} jobs: {', '.join(f'{w:.1f}' for w in walls)} s wall, **median "
                 f"{wall:.1f} s** (target {args.target_s:.0f} s: {verdict}); load average "
                 f"{load0:.2f} before the first run, {load[0]:.2f} after the last. The table is "
                 "the last run's.")
-        update_readme(args.readme, head + "\n\n" + text)
+        update_page(args.page, head + "\n\n" + text)
     return 0
 
 

@@ -1,14 +1,14 @@
 """Per-rule time table of a study, from Snakemake's `benchmark:` files and the jobs' logs.
 
-    python benchmarks/rule_times.py [results/paper] [--readme README.md]
+    python benchmarks/rule_times.py [results/paper] [--page docs/performance.md]
 
 Every rule that runs a script writes ``results/<study>/benchmarks/<rule>/<job>.tsv``
 (Snakemake's benchmark record; its wall seconds ``s`` are used), and every step logs its
 process's CPU seconds and how many of them passed before the step began (Python, Snakemake's
 preamble, imports: the start-up), in ``results/<study>/logs/``. This prints, per rule: jobs,
 wall seconds (sum, mean, max), CPU seconds (sum) and start-up seconds (sum), and the totals;
-with ``--readme`` it replaces the table between the markers ``<!-- rule-times:start -->`` and
-``<!-- rule-times:end -->`` in that file.
+with ``--page`` it replaces the table between the markers ``<!-- generated:rule-times:start -->``
+and ``<!-- generated:rule-times:end -->`` in that file.
 """
 
 from __future__ import annotations
@@ -84,17 +84,18 @@ def table(rules: dict[str, list[float]],
 
 
 def replace_between_markers(text: str, new: str, name: str = "rule-times") -> str:
-    """``text`` with what lies between ``<!-- name:start -->`` and ``<!-- name:end -->``
-    replaced by ``new`` (every benchmark writes its README table this way)."""
-    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    """``text`` with what lies between ``<!-- generated:name:start -->`` and
+    ``<!-- generated:name:end -->`` replaced by ``new`` (every benchmark writes its table in
+    docs/performance.md this way; ``facemotion docs --check`` skips these blocks)."""
+    start, end = f"<!-- generated:{name}:start -->", f"<!-- generated:{name}:end -->"
     if start not in text or end not in text:
         raise SystemExit(f"benchmarks: markers {start} ... {end} not found")
     head, rest = text.split(start, 1)
     _, tail = rest.split(end, 1)
-    return f"{head}{start}\n{new}\n{end}{tail}"
+    return f"{head}{start}\n\n{new}\n\n{end}{tail}"
 
 
-def update_readme(path, new: str, name: str = "rule-times") -> None:
+def update_page(path, new: str, name: str = "rule-times") -> None:
     """Replace the table between the ``name`` markers of the file at ``path`` with ``new``."""
     p = Path(path)
     p.write_text(replace_between_markers(p.read_text(), new, name))
@@ -104,7 +105,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", nargs="?", default="results/paper",
                     help="the study's results folder (default results/paper)")
-    ap.add_argument("--readme", help="replace the table between the markers in this file")
+    ap.add_argument("--page", help="replace the table between the markers in this file "
+                    "(docs/performance.md)")
     args = ap.parse_args(argv)
     rules = read_benchmarks(Path(args.root))
     if not rules:
@@ -112,8 +114,8 @@ def main(argv=None) -> int:
         return 1
     text = table(rules, read_job_cpu(Path(args.root)))
     print(text)
-    if args.readme:
-        update_readme(args.readme, text)
+    if args.page:
+        update_page(args.page, text)
     return 0
 
 

@@ -1,7 +1,7 @@
 """`make bench`: the QR analysis against its baselines (bench_qr.py), the dense-data cases that
 run in minutes (bench_dense.py: GEMM peak, ranking at 10x the frames, loading 20,000 frames,
 the TRC reader), then the default study three times (bench_study.py); each writes its table
-into README.md between its markers.
+into docs/performance.md between its markers, and nothing else in the repository.
 
     python benchmarks/run_all.py [--quick]
 """
@@ -14,12 +14,11 @@ HERE = Path(__file__).resolve().parent
 
 if __name__ == "__main__":
     quick = ["--quick"] if "--quick" in sys.argv[1:] else []
-    readme = str(HERE.parent / "README.md")
-    rc = subprocess.call([sys.executable, str(HERE / "bench_qr.py"), *quick,
-                          "--readme", readme])
-    # the cases that run in minutes; mem4g, dense and talker: see the README
+    page = str(HERE.parent / "docs" / "performance.md")
+    rc = subprocess.call([sys.executable, str(HERE / "bench_qr.py"), *quick, "--page", page])
+    # the cases that run in minutes; mem4g, dense and talker: see docs/performance.md
     rc |= subprocess.call([sys.executable, str(HERE / "bench_dense.py"), *quick, "--only",
-                           "peak", "rank10x", "load20k", "reader", "--readme", readme])
+                           "peak", "rank10x", "load20k", "reader", "--page", page])
     rc |= subprocess.call([sys.executable, str(HERE / "bench_study.py"), "--repeat", "3",
-                           "--readme", readme])
+                           "--page", page])
     sys.exit(rc)

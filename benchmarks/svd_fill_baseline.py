@@ -1,6 +1,6 @@
 """The previous long-gap method, kept as the benchmark's baseline: for each gap, every marker
 measured throughout it is a donor, and the model is a thin SVD of the whole take's frames x
-3(d + 1) matrix (as in facemotion before issue 13)."""
+3(d + 1) matrix (the method the PCA gap filling replaced)."""
 
 from __future__ import annotations
 

@@ -3,6 +3,7 @@
     facemotion info take.c3d                          # labels, rate, units, frames, gaps
     facemotion rank s1.c3d s2.c3d --head A,B,C        # first pivots, r values, epsilon-rank
     facemotion study --configfile config/real.yaml    # the Snakemake workflow
+    facemotion docs [--check]                         # the docs' numbers and figures
 
 ``rank`` loads the files by the workflow's own path (:func:`facemotion.load`: read, remove head
 motion, select markers, fill gaps, displacements) with the workflow's default settings, so its
@@ -241,6 +242,50 @@ def study(snakemake_args) -> None:
     proc = subprocess.run([sys.executable, "-m", "snakemake", *args], check=False)
     if proc.returncode:
         sys.exit(proc.returncode)
+
+
+@cli.command()
+@click.option("--check", is_flag=True,
+              help="Write nothing: compare every generated block and figure with its sources "
+                   "and exit 1 with one line per difference.")
+@click.option("--results", default="results", show_default=True,
+              type=click.Path(file_okay=False),
+              help="The folder holding the studies' results (results/<study>/).")
+@click.option("--repo", default=".", show_default=True, type=click.Path(file_okay=False),
+              help="The repository whose README.md and docs/ are written or checked.")
+@click.option("--shared-data", default=None, type=click.Path(file_okay=False),
+              help="The shared real data (some blocks measure them). Default: "
+                   "../shared/data beside the repository.")
+def docs(check: bool, results: str, repo: str, shared_data: str | None) -> None:
+    """Write every number, table and figure README.md and docs/ show from the studies'
+    outputs (results/paper, results/real, results/dense): the blocks between
+    <!-- generated:NAME:start --> and <!-- generated:NAME:end --> markers, and the figures in
+    docs/figures/. Blocks of a study that has not been run, and blocks another command writes
+    (make bench), are skipped with a line saying so.
+    """
+    from facemotion.study.pages import run
+
+    root = Path(repo).resolve()
+    shared = Path(shared_data) if shared_data else root.parent / "shared" / "data"
+    out = run(root, Path(results), shared, check=check)
+    for line in out.skipped:
+        click.echo(line)
+    if check:
+        for line in out.problems + out.differs:
+            click.echo(line)
+        if out.problems or out.differs:
+            click.echo(f"facemotion docs --check: {len(out.problems) + len(out.differs)} "
+                       "difference(s); `make pages` rewrites the blocks and figures", err=True)
+            sys.exit(1)
+        click.echo(f"facemotion docs --check: {out.unchanged} blocks and figures up to date")
+        return
+    for line in out.written:
+        click.echo(line)
+    for line in out.problems:
+        click.echo(line)
+    click.echo(f"facemotion docs: {len(out.written)} written, {out.unchanged} up to date")
+    if out.problems:
+        sys.exit(1)
 
 
 def main(argv: list[str] | None = None) -> None:
