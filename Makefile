@@ -21,7 +21,7 @@ $(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/python
 
 venv: $(VENV)/.installed
 
-# The SLURM executor plugin too, for profiles/slurm (README "On a cluster"). Not in `venv`:
+# The SLURM executor plugin too, for profiles/slurm (docs/workflow.md). Not in `venv`:
 # Snakemake imports every installed executor plugin when it starts.
 $(VENV)/.installed-cluster: $(VENV)/.installed
 	$(BIN)/pip install --quiet -c constraints.txt -e '.[workflow,dev,cluster]'

@@ -1,7 +1,9 @@
 """`make bench`: the QR analysis against its baselines (bench_qr.py), the dense-data cases that
 run in minutes (bench_dense.py: GEMM peak, ranking at 10x the frames, loading 20,000 frames,
-the TRC reader), then the default study three times (bench_study.py); each writes its table
-into docs/performance.md between its markers, and nothing else in the repository.
+the TRC reader), the default study three times (bench_study.py), then the default study with
+this code against the last commit before one job per dataset, alternating
+(bench_before_after.py); each writes its table into docs/performance.md between its markers,
+and nothing else in the repository.
 
     python benchmarks/run_all.py [--quick]
 """
@@ -20,5 +22,7 @@ if __name__ == "__main__":
     rc |= subprocess.call([sys.executable, str(HERE / "bench_dense.py"), *quick, "--only",
                            "peak", "rank10x", "load20k", "reader", "--page", page])
     rc |= subprocess.call([sys.executable, str(HERE / "bench_study.py"), "--repeat", "3",
+                           "--page", page])
+    rc |= subprocess.call([sys.executable, str(HERE / "bench_before_after.py"), "--repeat", "3",
                            "--page", page])
     sys.exit(rc)

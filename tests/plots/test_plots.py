@@ -457,7 +457,7 @@ def test_selection_agreement():
     assert heat.get_xlabel() and heat.get_ylabel() and bar.get_xlabel()
 
 
-# ---------------------------------------------------------------- legibility (issue 10)
+# ---------------------------------------------------------------- legibility
 
 
 def _text_boxes(fig, ax):

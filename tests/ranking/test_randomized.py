@@ -1,4 +1,4 @@
-"""Randomized selection for many columns vs deterministic pivoted QR (issue 12: 1.05 x)."""
+"""Randomized selection for many columns vs deterministic pivoted QR (residual within 1.05 x)."""
 
 import logging
 

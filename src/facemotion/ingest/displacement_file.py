@@ -6,7 +6,7 @@ entry and C-ordered, so its values are one contiguous run of bytes at a known of
 takes any range of rows with one positioned read, and a consumer that streams A (the Gram
 matrix, TSQR, the error curves) holds one block at a time, however long the recording.
 
-Why not compressed: deflate saved 5 % on displacement data at 27 MB/s (issue 13), i.e. the
+Why not compressed: deflate saved 5 % on displacement data at 27 MB/s, i.e. the
 writer and every reader spent seconds to save almost nothing, and a deflated entry cannot be
 read from the middle. Why not zarr: one more dependency, a directory of chunk files instead of
 one file (awkward for Snakemake outputs and checksummed provenance), and nothing to gain here

@@ -57,7 +57,7 @@ MAX_OUTLIER_FRACTION = 0.5  # a take more than half outliers would be reconstruc
 
 @dataclass(frozen=True)
 class Limits:
-    """The plausibility limits (settings ``gaps.*`` and ``checks.*``; defaults in the README).
+    """The plausibility limits (settings ``gaps.*`` and ``checks.*``; defaults in docs/settings.md).
 
     ``names``: what a message calls each limit, by field. By default the argument
     (``limits.face_spread_mm``); the study passes its settings (``setting checks.face_spread_mm``).

@@ -15,7 +15,7 @@ depends on a reading of the paper (R's normalisation) are compared as scale-free
 possible.
 
 ``python -m facemotion.papers.comparison TABLE.tsv`` prints the table as markdown (Table I as a
-grid, the other rows as a list) for the README.
+grid, the other rows as a list) for the docs (facemotion.study.pages).
 """
 
 from __future__ import annotations

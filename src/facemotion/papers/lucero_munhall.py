@@ -372,7 +372,7 @@ def fig10(R: Rows, inp: Inputs) -> None:
     R.add(LM, "Sec. V, Fig. 10", "S1: mean error at k = 10 against k = 1",
           "falls with k (not printed)", ratio, "mean absolute error at k = 10 / at k = 1",
           "curve:S1", "reproduced" if ratio <= 0.6 else "same shape" if ratio < 1 else "differs",
-          "reproduced: <= 0.6 (issue 8's reading of Fig. 10's trend); same shape: < 1; "
+          "reproduced: <= 0.6 (our reading of Fig. 10's trend); same shape: < 1; "
           "differs: otherwise", False)
     per, pooled = float(c.loc[10, "rel_error_per_marker"]), float(c.loc[10, "rel_error_pooled"])
     R.add(LM, "Sec. V, Fig. 10", "S1: the relative error is high because most markers move "

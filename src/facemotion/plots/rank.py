@@ -60,9 +60,9 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     if lows:
         # room under the lowest point for the labels of the last pivots
         ax.set_ylim(bottom=min(min(lows), min(tolerances, default=1.0)) / 4)
-    if zeros:
-        fig.supxlabel("numerically 0 (not on the log axis): " + "; ".join(zeros),
-                      fontsize=7.5, color="0.3")
+    note = _zeros_note(zeros)
+    if note:
+        fig.supxlabel(note, fontsize=7.5, color="0.3")
     ax.set_xlim(0.5, n_max + 0.5)
     ax.set_xlabel("pivot order (marker selected at step i of QR with column pivoting)")
     ax.set_ylabel(_y_label(tables, column))
@@ -72,13 +72,34 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     legend = ax.legend(fontsize=8, loc="upper right")
     # fixed layout (inches): the title above, the note line under the axes, the measured y
     # tick labels and label on the left (before the labels that must stay inside the axes)
-    margins = {"right": 0.1, "top": 0.25, "bottom": 0.48 + (0.2 if zeros else 0.0)}
+    margins = {"right": 0.1, "top": 0.25,
+               "bottom": 0.48 + (0.05 + 0.15 * note.count("\n") + 0.15 if note else 0.0)}
     fixed_layout(fig, left=0.85, **margins)
     fixed_layout(fig, left=yaxis_width(ax) + 0.05, **margins)
     ticks_in_view(ax)
     texts = _label_last_pivots(ax, candidates, n_max)
     keep_legible(fig, texts, inside=ax, avoid=[legend, *ax.texts[:len(tolerances)]])
     return fig
+
+
+#: Characters of the 7.5-point note under the axes that fit the 7-inch figure's width.
+NOTE_CHARS = 120
+
+
+def _zeros_note(zeros: list[str]) -> str:
+    """The note of the numerically zero pivots: one line while it fits the figure's width,
+    else a line per dataset (each wrapped to the width)."""
+    import textwrap
+
+    if not zeros:
+        return ""
+    one = "numerically 0 (not on the log axis): " + "; ".join(zeros)
+    if len(one) <= NOTE_CHARS:
+        return one
+    lines = ["numerically 0 (not on the log axis):"]
+    for z in zeros:
+        lines += textwrap.wrap(z, NOTE_CHARS, subsequent_indent="    ")
+    return "\n".join(lines)
 
 
 def _draw_curves(ax, tables: Mapping[str, pd.DataFrame], column: str, annotate_below: float,

@@ -54,7 +54,7 @@ def implied_rms_per_coordinate(r_value: float, rows: int,
     quoted under ``normalisation`` implies for A with ``rows`` = 3M rows: r * scale / sqrt(3M).
 
     E.g. the paper's r56 = 22.70 mm with 3M = 27,000: 0.14 mm under "none", 22.70 mm under
-    "per_coordinate", 13.1 mm under "per_frame" (README, "Normalisation of R").
+    "per_coordinate", 13.1 mm under "per_frame" (docs/methods.md).
     """
     return float(r_value) * r_scale(rows, normalisation) / float(np.sqrt(rows))
 

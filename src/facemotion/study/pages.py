@@ -47,8 +47,7 @@ EXTERNAL = {
     "bench-qr": "make bench (benchmarks/bench_qr.py)",
     "bench-dense": "make bench (benchmarks/bench_dense.py)",
     "rule-times": "make bench (benchmarks/bench_study.py)",
-    "restructure": "no command yet (a benchmark of the default study before and after one job "
-                   "per dataset will write it)",
+    "restructure": "make bench (benchmarks/bench_before_after.py)",
 }
 FIGURE_DIR = "docs/figures"
 #: The studies the docs read, with the command that makes each.
