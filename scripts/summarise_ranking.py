@@ -4,7 +4,7 @@ import pandas as pd
 
 from facemotion.plots.rank import plot_r_values
 from facemotion.plots.selection import plot_selection_agreement
-from facemotion.regions.selector import selection_table
+from facemotion.ranking.result import selection_table
 from facemotion.study.adapter import run_step
 from facemotion.study.outputs import figure_files
 from facemotion.study.provenance import save_figure, write_table

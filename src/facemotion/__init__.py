@@ -53,7 +53,7 @@ _LAZY = {
     "error_curve": ("facemotion.regions.prediction", "error_curve"),
     "sentence_sweep": ("facemotion.ranking.stability", "sentence_sweep"),
     "MarkerSelector": ("facemotion.regions.selector", "MarkerSelector"),
-    "selection_table": ("facemotion.regions.selector", "selection_table"),
+    "selection_table": ("facemotion.ranking.result", "selection_table"),
     "Recording": ("facemotion.io.recording", "Recording"),
     "Displacements": ("facemotion.ingest.displacements", "Displacements"),
     "LoadedDataset": ("facemotion.ingest.loading", "LoadedDataset"),
@@ -80,12 +80,12 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
     from facemotion.io.recording import Recording
     from facemotion.io.registry import read_recording as read
     from facemotion.ranking.epsilon_rank import epsilon_rank
-    from facemotion.ranking.result import MarkerRanking
+    from facemotion.ranking.result import MarkerRanking, selection_table
     from facemotion.ranking.routes import rank_markers
     from facemotion.ranking.stability import sentence_sweep
     from facemotion.regions.prediction import error_curve, predict
     from facemotion.regions.prediction import fit_coefficients as fit_regions
-    from facemotion.regions.selector import MarkerSelector, selection_table
+    from facemotion.regions.selector import MarkerSelector
 
 
 class _Package(types.ModuleType):

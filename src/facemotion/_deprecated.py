@@ -9,7 +9,6 @@ path is.
 from __future__ import annotations
 
 import importlib
-import importlib.abc
 import importlib.machinery
 import sys
 import types
@@ -104,8 +103,10 @@ class _Shim(types.ModuleType):
         return sorted(names)
 
 
-class _Finder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Finds ``facemotion.<old path>`` after the normal finders have not."""
+class _Finder:
+    """Finds ``facemotion.<old path>`` after the normal finders have not, and loads it (a
+    meta path finder and loader; not derived from importlib.abc, whose import pulls in
+    importlib.resources, tempfile and shutil: 12 ms at every start of every job)."""
 
     def find_spec(self, fullname, path=None, target=None):
         old = fullname.removeprefix("facemotion.")

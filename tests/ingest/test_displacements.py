@@ -5,7 +5,7 @@ import pytest
 
 from facemotion.errors import InputError
 from facemotion.ingest.displacement_file import load_displacements, save_displacements
-from facemotion.ingest.displacements import Displacements, build_displacements
+from facemotion.ingest.displacements import Displacements, build_displacements, sentence_rows
 from facemotion.io.recording import Recording
 
 LABELS = ["Chin", "40", "L017"]
@@ -119,3 +119,10 @@ def test_load_errors(tmp_path):
     np.savez(tmp_path / "partial.npz", A=np.zeros((3, 2)))
     with pytest.raises(InputError, match=r"partial\.npz.*lacks.*labels"):
         load_displacements(tmp_path / "partial.npz")
+
+
+def test_sentence_order_is_first_appearance_and_rows_may_interleave():
+    rs = np.repeat([3, 3, 1, 1, 3], 3)
+    ids, groups = sentence_rows(rs, rs.size)
+    assert ids.tolist() == [3, 1]
+    assert groups[0].tolist() == [0, 1, 2, 3, 4, 5, 12, 13, 14]

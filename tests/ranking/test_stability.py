@@ -6,7 +6,6 @@ import pytest
 
 from facemotion.errors import InputError
 from facemotion.ranking.stability import (
-    sentence_rows,
     sentence_sweep,
     sentence_sweep_naive,
     stability,
@@ -35,13 +34,6 @@ def test_incremental_sweep_equals_refactoring(method):
     assert (fast.marker == naive.marker).all()
     np.testing.assert_allclose(fast.r_rms, naive.r_rms, rtol=1e-8)
     np.testing.assert_array_equal(fast.rows, naive.rows)
-
-
-def test_sentence_order_is_first_appearance_and_rows_may_interleave():
-    rs = np.repeat([3, 3, 1, 1, 3], 3)
-    ids, groups = sentence_rows(rs, rs.size)
-    assert ids.tolist() == [3, 1]
-    assert groups[0].tolist() == [0, 1, 2, 3, 4, 5, 12, 13, 14]
 
 
 def test_stability_tables_and_agreement():

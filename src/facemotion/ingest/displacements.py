@@ -247,3 +247,25 @@ def split_roles(d: Displacements, sentences: pd.DataFrame | str | Path
     if not train:
         raise InputError("dataset has no training sentences")
     return d.subset(train), (d.subset(held) if held else None)
+
+
+def sentence_rows(row_sentence, rows: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Sentence ids in order of first appearance and the row indices of each."""
+    rs = np.asarray(row_sentence)
+    if rs.shape != (rows,):
+        raise InputError(
+            f"row_sentence: expected {rows} entries (one per row of A), got {rs.shape}"
+        )
+    if rows % 3 or np.any(rs.reshape(-1, 3) != rs.reshape(-1, 3)[:, :1]):
+        raise InputError("row_sentence: the 3 rows of a frame must belong to the same sentence")
+    starts = np.concatenate([[0], np.flatnonzero(rs[1:] != rs[:-1]) + 1])
+    run_ids = rs[starts]
+    if np.unique(run_ids).size == run_ids.size:  # usual case: each sentence one run of rows
+        ends = np.append(starts[1:], rows)
+        return run_ids, [np.arange(a, b) for a, b in zip(starts, ends, strict=True)]
+    ids, first, inverse = np.unique(rs, return_index=True, return_inverse=True)
+    by_row = np.argsort(inverse, kind="stable")
+    counts = np.bincount(inverse, minlength=ids.size)
+    groups = np.split(by_row, np.cumsum(counts)[:-1])
+    appearance = np.argsort(first, kind="stable")
+    return ids[appearance], [groups[i] for i in appearance]

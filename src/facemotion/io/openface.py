@@ -29,9 +29,9 @@ def read_openface_csv(path, units: str | None = None) -> Recording:
     """Read the 3-D landmarks of an OpenFace 2.x CSV (see the module docstring); always mm."""
     import pandas as pd
 
-    from facemotion.io.base import check_readable as _check_readable
+    from facemotion.io.base import check_readable
 
-    p = _check_readable(path)
+    p = check_readable(path)
     try:
         df = pd.read_csv(p, dtype=str, keep_default_na=False, skipinitialspace=True)
     except (OSError, UnicodeDecodeError, pd.errors.ParserError,
@@ -118,7 +118,7 @@ def write_openface_csv(path, rec: Recording) -> None:
     every landmark of a frame or none, so a take with a missing sample is refused (one line
     naming the marker and frame) instead of being written in a way OpenFace never writes."""
     from facemotion.io.atomic import atomic_path
-    from facemotion.io.base import format_coordinate as _fmt
+    from facemotion.io.base import format_coordinate
 
     missing = ~np.isfinite(rec.points).all(axis=2)
     if missing.any():
@@ -133,6 +133,6 @@ def write_openface_csv(path, rec: Recording) -> None:
     out = [", ".join(header)]
     for f in range(rec.n_frames):
         out.append(f"{f + 1}, 0, {f / rec.rate:.6f}, 1, 1, "
-                   + ", ".join(_fmt(x) for x in flat[f]))
+                   + ", ".join(format_coordinate(x) for x in flat[f]))
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(out) + "\n", encoding="utf-8")

@@ -43,10 +43,9 @@ def _label_row(rows, label: str, stop: int) -> list[str] | None:
 
 def read_optitrack_csv(path, units: str | None = None) -> Recording:
     """Read the labelled markers of a Motive CSV export (see the module docstring)."""
-    from facemotion.io.base import check_readable as _check_readable
-    from facemotion.io.base import unit_scale
+    from facemotion.io.base import check_readable, unit_scale
 
-    p = _check_readable(path)
+    p = check_readable(path)
     rows = _read_rows(p)
     meta = {rows[0][k].strip(): rows[0][k + 1].strip()
             for k in range(0, len(rows[0]) - 1, 2)}

@@ -33,9 +33,9 @@ def _float(text: str) -> float:
 
 def read_qualisys_tsv(path, units: str | None = None) -> Recording:
     """Read a QTM 3-D TSV export (see the module docstring); always mm (``units`` unused)."""
-    from facemotion.io.base import check_readable as _check_readable
+    from facemotion.io.base import check_readable
 
-    p = _check_readable(path)
+    p = check_readable(path)
     try:
         with open(p, encoding="utf-8-sig", newline="") as fh:
             lines = fh.read().splitlines()

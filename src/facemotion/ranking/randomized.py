@@ -158,8 +158,7 @@ def rank_randomized(A, labels, k: int, *, threads: int | None = None, seed: int 
     """
     import scipy.linalg
 
-    from facemotion.ranking.result import check_column_norms as _check_column_norms
-    from facemotion.ranking.result import make_ranking as _ranking
+    from facemotion.ranking.result import check_column_norms, make_ranking
 
     rows, n = A.shape
     k = int(min(k, rows, n))
@@ -167,7 +166,7 @@ def rank_randomized(A, labels, k: int, *, threads: int | None = None, seed: int 
     c = min(CANDIDATES_PER_PIVOT * b, n)                  # candidates per round, per kind
     l_ = min(c + oversample, n)
     Y, sq = gaussian_sketch(A, l_, seed=seed, threads=threads)
-    _check_column_norms(A, labels, sq)
+    check_column_norms(A, labels, sq)
     S = np.zeros(0, dtype=np.intp)
     Rk = np.zeros((0, n))                                 # rows of R so far (original columns)
     res = sq.copy()                                       # squared residual norms, all columns
@@ -198,7 +197,7 @@ def rank_randomized(A, labels, k: int, *, threads: int | None = None, seed: int 
     rest = np.setdiff1d(np.arange(n), S)
     rest = rest[np.argsort(-resid[rest], kind="stable")]
     order = np.concatenate([S, rest]).astype(np.intp)
-    ranking = _ranking(Rk[:, order], order, rows, labels, "randomized",
+    ranking = make_ranking(Rk[:, order], order, rows, labels, "randomized",
                        np.sqrt(n * np.finfo(float).eps), k, "nan")
     total = float(sq.sum())
     tail = total - np.cumsum(np.einsum("ij,ij->i", Rk, Rk))

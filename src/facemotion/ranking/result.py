@@ -8,7 +8,7 @@ of R" (Lucero & Munhall 2008, Fig. 2) are ``R_NORMALISATIONS`` (see :mod:`facemo
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -246,3 +246,15 @@ def rest_in_original_order(order: np.ndarray, m: int, n: int | None = None) -> n
 
 def n_ranked_for(rows: int, n: int, k_max: int | None) -> int:
     return min(rows, n, n if k_max is None else int(k_max))
+
+
+def selection_table(orders: Mapping[str, MarkerRanking | Sequence[str]],
+                    n: int = 10) -> pd.DataFrame:
+    """Table I of Lucero & Munhall (2008): the first ``n`` markers in pivot order, one column
+    per dataset (subject).  ``orders``: dataset label -> a ranking or its labels in pivot order;
+    a dataset with fewer than n markers gets empty cells."""
+    table = pd.DataFrame({"order": np.arange(1, n + 1)})
+    for label, order in orders.items():
+        markers = list(getattr(order, "labels_in_order", order))[:n]
+        table[str(label)] = [str(m) for m in markers] + [""] * (n - len(markers))
+    return table

@@ -23,34 +23,11 @@ import pandas as pd
 import scipy.linalg
 
 from facemotion.errors import InputError
+from facemotion.ingest.displacements import sentence_rows
 from facemotion.ranking.qr import GRAM_RATIO_LIMIT, pivoted_cholesky, update_r
-from facemotion.ranking.result import as_matrix as _unpack
-from facemotion.ranking.result import check_column_norms as _check_column_norms
-from facemotion.ranking.result import check_displacements
+from facemotion.ranking.result import as_matrix, check_column_norms, check_displacements
 
 SWEEP_COLUMNS = ["n_sentences", "order", "marker", "r_rms", "rows"]
-
-
-def sentence_rows(row_sentence, rows: int) -> tuple[np.ndarray, list[np.ndarray]]:
-    """Sentence ids in order of first appearance and the row indices of each."""
-    rs = np.asarray(row_sentence)
-    if rs.shape != (rows,):
-        raise InputError(
-            f"row_sentence: expected {rows} entries (one per row of A), got {rs.shape}"
-        )
-    if rows % 3 or np.any(rs.reshape(-1, 3) != rs.reshape(-1, 3)[:, :1]):
-        raise InputError("row_sentence: the 3 rows of a frame must belong to the same sentence")
-    starts = np.concatenate([[0], np.flatnonzero(rs[1:] != rs[:-1]) + 1])
-    run_ids = rs[starts]
-    if np.unique(run_ids).size == run_ids.size:  # usual case: each sentence one run of rows
-        ends = np.append(starts[1:], rows)
-        return run_ids, [np.arange(a, b) for a, b in zip(starts, ends, strict=True)]
-    ids, first, inverse = np.unique(rs, return_index=True, return_inverse=True)
-    by_row = np.argsort(inverse, kind="stable")
-    counts = np.bincount(inverse, minlength=ids.size)
-    groups = np.split(by_row, np.cumsum(counts)[:-1])
-    appearance = np.argsort(first, kind="stable")
-    return ids[appearance], [groups[i] for i in appearance]
 
 
 def cumulative(G: np.ndarray, axis: int = 0, overwrite: bool = False) -> np.ndarray:
@@ -98,14 +75,14 @@ def _check_n_pivots(n_pivots, n):
 def _prepare(A, labels, row_sentence, cumulative_sums=False):
     if row_sentence is None and hasattr(A, "row_sentence"):
         row_sentence = A.row_sentence
-    A, labels = _unpack(A, labels)
+    A, labels = as_matrix(A, labels)
     if row_sentence is None:
         raise InputError("row_sentence: the sentence index of each row of A is required")
     check_displacements(A, labels)
     _, groups = sentence_rows(row_sentence, A.shape[0])
     Gs, rows = sentence_grams(A, groups, cumulative_sums)
     total = Gs[-1] if cumulative_sums else Gs.sum(axis=0)
-    _check_column_norms(A, labels, np.diag(total).copy())
+    check_column_norms(A, labels, np.diag(total).copy())
     return A, labels, Gs, rows, groups
 
 
@@ -168,7 +145,7 @@ def sentence_sweep(
 
 def sentence_sweep_naive(A, labels, row_sentence, n_pivots: int = 12) -> pd.DataFrame:
     """Reference: scipy pivoted QR of the rows of the first s sentences, for every s."""
-    A, labels = _unpack(A, labels)
+    A, labels = as_matrix(A, labels)
     check_displacements(A, labels)
     _, groups = sentence_rows(row_sentence, A.shape[0])
     m = _check_n_pivots(n_pivots, A.shape[1])

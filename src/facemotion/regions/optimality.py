@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from facemotion.errors import InputError
-from facemotion.ranking.result import as_matrix as _unpack
+from facemotion.ranking.result import as_matrix
 from facemotion.ranking.routes import rank_markers
 
 COLUMNS = [
@@ -169,7 +169,7 @@ def subset_optimality(
     Subsets are comma-separated labels (QR and greedy in selection order, optimal sorted by
     column).  qr_over_optimal = qr_residual_rms_mm / optimal_residual_rms_mm (>= 1).
     """
-    A, labels = _unpack(A, labels)
+    A, labels = as_matrix(A, labels)
     ranking = rank_markers(A, labels)  # validates A
     rows, n = A.shape
     if isinstance(k_max, bool) or not isinstance(k_max, int | np.integer) or not 1 <= k_max < n:

@@ -50,7 +50,7 @@ import numpy as np
 import pandas as pd
 
 from facemotion.errors import InputError
-from facemotion.ranking.stability import sentence_rows
+from facemotion.ingest.displacements import sentence_rows
 
 COLUMNS = [
     "marker",

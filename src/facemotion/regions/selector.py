@@ -23,15 +23,14 @@ With no forced and no excluded marker this is exactly :func:`facemotion.rank_mar
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
 import scipy.linalg
 
 from facemotion.errors import InputError
-from facemotion.ranking.result import MarkerRanking
-from facemotion.ranking.result import make_ranking as _ranking
+from facemotion.ranking.result import MarkerRanking, make_ranking
 from facemotion.ranking.routes import rank_markers
 from facemotion.regions.prediction import fit_coefficients
 
@@ -85,19 +84,7 @@ def constrained_ranking(A, labels: Sequence[str] | None = None, *, force: Sequen
         _, piv = scipy.linalg.qr(C, mode="r", pivoting=True)
         order += [group[i] for i in piv]
     R = scipy.linalg.qr(R0[:, order], mode="r")[0]
-    return _ranking(R[:n], order, base.rows, labels, f"{base.method}+constrained", base.rtol)
-
-
-def selection_table(orders: Mapping[str, MarkerRanking | Sequence[str]],
-                    n: int = 10) -> pd.DataFrame:
-    """Table I of Lucero & Munhall (2008): the first ``n`` markers in pivot order, one column
-    per dataset (subject).  ``orders``: dataset label -> a ranking or its labels in pivot order;
-    a dataset with fewer than n markers gets empty cells."""
-    table = pd.DataFrame({"order": np.arange(1, n + 1)})
-    for label, order in orders.items():
-        markers = list(getattr(order, "labels_in_order", order))[:n]
-        table[str(label)] = [str(m) for m in markers] + [""] * (n - len(markers))
-    return table
+    return make_ranking(R[:n], order, base.rows, labels, f"{base.method}+constrained", base.rtol)
 
 
 class MarkerSelector:
