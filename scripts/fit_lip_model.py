@@ -23,7 +23,7 @@ def main(sm, log, prov):
                 figure_files(sm.output, "mesh_png"), "lip_mesh", prov)
     write_table(result.modes, sm.output.modes, "lip_modes", prov)
     save_figure(plot_modes(result.mean_displacement, result.mode_shapes, result.mesh,
-                           result.mode_sd, result.mode_variance_fraction, result.unit_scale,
+                           result.mode_sd, result.mode_variance_fraction, result.model_units_per_mm,
                            title=study.modes_title),
                 figure_files(sm.output, "modes_png"), "lip_modes", prov)
     write_table(result.fit_residuals, sm.output.fit_residuals, "lip_fit_residuals", prov)

@@ -15,9 +15,9 @@ from facemotion.lips.mesh import (
     canonical_lip_mesh,
     extents,
     lip_band,
+    model_units_per_mm,
     parametric_lip_mesh,
     triangle_areas,
-    unit_scale,
 )
 
 DATA = SHARED_DATA
@@ -120,14 +120,14 @@ def test_obj_reader_bad_line(tmp_path):
         read_obj(p)
 
 
-def test_unit_scale_gives_the_papers_extents():
+def test_model_units_per_mm_gives_the_papers_extents():
     m = parametric_lip_mesh()
-    k = unit_scale(m, PAPER_MODEL_EXTENT)
+    k = model_units_per_mm(m, PAPER_MODEL_EXTENT)
     scaled = m.nodes * k
     # independent reference: the bounding box by sorting each axis
     size = np.array([np.sort(scaled[:, a])[-1] - np.sort(scaled[:, a])[0] for a in range(3)])
     np.testing.assert_allclose(size, [2.35, 2.83, 5.05], rtol=1e-12)
     np.testing.assert_allclose(extents(m.nodes), [50.0, size[1] / k[1], size[2] / k[2]])
-    assert np.all(unit_scale(m, None) == 1)
+    assert np.all(model_units_per_mm(m, None) == 1)
     with pytest.raises(InputError, match="model_extent"):
-        unit_scale(m, (2.35, -1.0, 5.05))
+        model_units_per_mm(m, (2.35, -1.0, 5.05))

@@ -112,7 +112,7 @@ def test_virtual_tables(virtual_rigid):
     # mm^2 and model units^2 agree through the per-axis unit scale: the ratio lies between
     # the smallest and the largest squared factor
     ratio = rec["mse_per_dof_model_units2"] / rec["mse_per_dof_mm2"]
-    k2 = res.unit_scale ** 2
+    k2 = res.model_units_per_mm ** 2
     assert np.all((ratio >= k2.min() * (1 - 1e-9)) & (ratio <= k2.max() * (1 + 1e-9)))
     exact = rec[(rec.noise == "noise_free") & (rec.point_set == "mesh_nodes")
                 & (rec.view != "xyz_8_points") & (rec.covariance == "full_covariance")]
@@ -212,7 +212,7 @@ def test_figures_are_deterministic(virtual_rigid, grid_result):
     talker, res = virtual_rigid
     figs = [plot_mesh(res.mesh, res.tracked),
             plot_modes(res.mean_displacement, res.mode_shapes, res.mesh, res.mode_sd,
-                       res.mode_variance_fraction, res.unit_scale),
+                       res.mode_variance_fraction, res.model_units_per_mm),
             plot_mesh(grid_result.mesh, grid_result.tracked)]
     assert len(figs[0].axes) == 2 and len(figs[1].axes) == 8
     out = []

@@ -47,3 +47,12 @@ def read_obj(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if len(f) and (f.min() < 0 or f.max() >= len(v)):
         raise InputError(f"{path}: a face refers to a vertex outside 1..{len(v)}")
     return v, f
+
+
+def obj_bytes(vertices, triangles, comment: str = "") -> bytes:
+    """A mesh as Wavefront OBJ text (vertices with 6 decimals, 1-based faces), as bytes for an
+    atomic write; ``comment`` becomes the first line (``# ...``)."""
+    lines = [f"# {comment}"] if comment else []
+    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
+    return ("\n".join(lines) + "\n").encode()

@@ -313,7 +313,7 @@ def extents(nodes: np.ndarray) -> np.ndarray:
 PAPER_MODEL_EXTENT = (2.35, 2.83, 5.05)
 
 
-def unit_scale(mesh: LipMesh, extent: tuple[float, float, float] | None) -> np.ndarray:
+def model_units_per_mm(mesh: LipMesh, extent: tuple[float, float, float] | None) -> np.ndarray:
     """Per-axis factors (3,) from the mesh's coordinates (mm) to model units: the mesh's
     bounding box (all nodes) becomes `extent` (x, y, z). None: keep mm (factors 1)."""
     if extent is None:
@@ -445,3 +445,15 @@ def canonical_lip_mesh(obj_path: str | Path, strip_rings: int = 2, strip_depth: 
                    role_all, np.concatenate(parts), np.concatenate(kinds_all), labs,
                    name=f"canonical lip mesh ({Path(obj_path).name})")
 
+
+def __getattr__(name: str):
+    """``unit_scale`` of facemotion 0.1, now :func:`model_units_per_mm` (the readers' unit_scale
+    is millimetres per unit)."""
+    if name == "unit_scale":
+        import warnings
+
+        warnings.warn("facemotion.lips.mesh.unit_scale is deprecated and will be removed in "
+                      "facemotion 0.3; use facemotion.lips.mesh.model_units_per_mm",
+                      DeprecationWarning, stacklevel=2)
+        return model_units_per_mm
+    raise AttributeError(f"module 'facemotion.lips.mesh' has no attribute {name!r}")

@@ -43,7 +43,7 @@ from facemotion.io.recording import Recording
 from facemotion.lips.fem import assemble_stiffness
 from facemotion.lips.fitting import MinimalForceFitter, fit_residuals
 from facemotion.lips.llse import LLSE, ppca_noise_var
-from facemotion.lips.mesh import PAPER_MODEL_EXTENT, LipMesh, canonical_lip_mesh, unit_scale
+from facemotion.lips.mesh import PAPER_MODEL_EXTENT, LipMesh, canonical_lip_mesh, model_units_per_mm
 from facemotion.lips.normalise import align_rigid, fit_scaled_rigid, normalise_paper, to_model
 from facemotion.lips.pca import Modes, pca_svd
 from facemotion.lips.virtual import VirtualLipTalker, depth_share, make_virtual_talker
@@ -103,8 +103,8 @@ class LipModelResult:
     `truth_recovery` (virtual: per-frame error of the fit against the planted truth).
     Arrays: `displacements` (frames, N, 3) fitted, mm; `mean_displacement` (N, 3) and
     `mode_shapes` (k, N, 3) in model units (unit-norm modes, zero on fixed nodes); `mode_sd`
-    (k,) model units. `mesh` is the rest-state mesh in the model's mm coordinates; `unit_scale`
-    (3,) model units per mm along x, y, z.
+    (k,) model units. `mesh` is the rest-state mesh in the model's mm coordinates;
+    `model_units_per_mm` (3,) model units per mm along x, y, z.
     """
 
     mesh: LipMesh
@@ -115,7 +115,7 @@ class LipModelResult:
     mode_shapes: np.ndarray
     mode_sd: np.ndarray
     mode_variance_fraction: np.ndarray
-    unit_scale: np.ndarray
+    model_units_per_mm: np.ndarray
     noise_var: float
     noise_var_choice: str
     train_frames: np.ndarray
@@ -242,7 +242,7 @@ def run_lip_model(mesh: LipMesh, recording: Recording, tracked_labels: list[str]
                                      reference_labels)                          # steps 1-2
     cols = [recording.index(t) for t in tracked]
     fit = fit_frames(mesh, data_m[:, cols], tracked, physics)                    # steps 3-4
-    k_unit = unit_scale(mesh, model_extent)                            # step 5: units per mm
+    k_unit = model_units_per_mm(mesh, model_extent)                          # step 5
     data = (fit.displacements * k_unit).reshape(F, -1)[:, fit.state]
     learned = learn_modes(data[train], n_modes, noise_var)                       # step 6
     truth_state = None
@@ -270,7 +270,7 @@ def run_lip_model(mesh: LipMesh, recording: Recording, tracked_labels: list[str]
     return LipModelResult(
         mesh=fit.rest, tracked=tracked, displacements=fit.displacements, goals=fit.goals,
         **learned.shapes(mesh.n_nodes, fit.state),
-        unit_scale=k_unit, noise_var=learned.noise_var, noise_var_choice=learned.choice,
+        model_units_per_mm=k_unit, noise_var=learned.noise_var, noise_var_choice=learned.choice,
         train_frames=train, test_frames=test, placement=_placement(R, s, fit.rest_goal),
         modes=learned.all.table().head(max(n_modes, min(learned.all.n_modes, 20))),
         fit_residuals=fit.residuals, reconstruction=recon,
@@ -671,7 +671,7 @@ def lip_study(recordings: list[Recording], spec: dict, settings: LipSettings,
         study = LipStudy(subject, "Virtual lip talker", result, result.truth_recovery)
     log.info("model placement on the first frame: %s",
              {k: round(float(v), 4) for k, v in result.placement.items()})
-    log.info("model units per mm (x, y, z): %s", np.round(result.unit_scale, 5).tolist())
+    log.info("model units per mm (x, y, z): %s", np.round(result.model_units_per_mm, 5).tolist())
     log.info("noise variance of the regularised estimators %.4g model units^2 (%s)",
              result.noise_var, result.noise_var_choice)
     return study

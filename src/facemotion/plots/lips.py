@@ -53,18 +53,18 @@ def plot_mesh(mesh: LipMesh, tracked: list[str] | np.ndarray | None = None,
 
 def plot_modes(mean_disp: np.ndarray, modes: np.ndarray, mesh: LipMesh,
                sd: np.ndarray | None = None, fractions: np.ndarray | None = None,
-               unit_scale: np.ndarray | None = None, title: str = "",
+               units_per_mm: np.ndarray | None = None, title: str = "",
                n_show: int = 3) -> Figure:
     """Basu & Pentland (1997) Fig. 9: the mean displacement and the first characteristic modes.
 
     Column 1: the rest shape (grey) and rest + mean displacement (black); then, per mode, the
     mean shape (grey) and mean -/+ 2 sd along the mode (blue/red). Top row frontal (x-y), bottom
     row profile (z-y), drawn in mm. mean_disp (N, 3) and modes (k, N, 3) are in model units with
-    `unit_scale` (3,) model units per mm (default 1: mm); sd (k,) in model units; fractions (k,)
+    `units_per_mm` (3,) model units per mm (default 1: mm); sd (k,) in model units; fractions (k,)
     of the total variance, printed per mode.
     """
     n_show = min(n_show, len(modes))
-    k_unit = np.ones(3) if unit_scale is None else np.asarray(unit_scale, dtype=float)
+    k_unit = np.ones(3) if units_per_mm is None else np.asarray(units_per_mm, dtype=float)
     sd = np.ones(len(modes)) if sd is None else np.asarray(sd)
     mean_mm = mean_disp / k_unit
     fig = Figure(figsize=(3.4 * (n_show + 1), 6.4))

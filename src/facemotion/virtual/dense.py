@@ -264,11 +264,11 @@ def dense_face(path: str | os.PathLike, talker_anatomy: np.ndarray,
 def write_obj(path: str | os.PathLike, face: DenseFace) -> bytes:
     """The placed mesh as Wavefront OBJ text (mm, head frame; vertex i is ``face.labels[i]``),
     returned as bytes for an atomic write."""
-    lines = [f"# facemotion dense virtual talker: {face.n} vertices, mm, head frame; vertex i "
-             f"is {face.labels[0][0]}{{i}}"]
-    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in face.vertices]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in face.triangles]
-    return ("\n".join(lines) + "\n").encode()
+    from facemotion.io.obj import obj_bytes
+
+    return obj_bytes(face.vertices, face.triangles,
+                     f"facemotion dense virtual talker: {face.n} vertices, mm, head frame; "
+                     f"vertex i is {face.labels[0][0]}{{i}}")
 
 
 # ------------------------------------------------------------------------------ the talker
