@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from facemotion.errors import InputError
-from facemotion.ingest.displacements import Displacements
+from facemotion.ingest.displacements import Displacements, check_sentence_indices
 from facemotion.io.atomic import current_umask
 
 if TYPE_CHECKING:
@@ -326,7 +326,7 @@ class DisplacementsFile:
         if sentence_indices is None:
             return RowBlocks(self, [(0, self.shape[0])])
         ranges = []
-        for s in _check_indices(sentence_indices, len(self.sentences)):
+        for s in check_sentence_indices(sentence_indices, len(self.sentences)):
             idx = np.flatnonzero(self.row_sentence == s)
             if idx.size:
                 # a sentence's rows are contiguous in A (sentences are stacked)
@@ -343,17 +343,6 @@ class DisplacementsFile:
             row_frame=self.row_frame, rate=self.rate, fill_mask=np.asarray(self.fill_mask),
             head_residual=self.head_residual, neutral=self.neutral,
             sentence_neutral=self.sentence_neutral)
-
-
-def _check_indices(sentence_indices, n: int) -> list[int]:
-    idx = [int(i) for i in np.atleast_1d(np.asarray(sentence_indices, dtype=np.int64))]
-    bad = [i for i in idx if not 0 <= i < n]
-    if bad:
-        raise InputError(f"displacements: sentence index(es) {bad} out of range "
-                         f"(have {n} sentences)")
-    if len(set(idx)) != len(idx):
-        raise InputError(f"displacements: sentence index(es) repeated in {idx}")
-    return idx
 
 
 class RowBlocks:

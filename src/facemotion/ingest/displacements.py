@@ -119,14 +119,7 @@ class Displacements:
             neutral=neutral, sentence_neutral=sn)
 
     def _check_indices(self, sentence_indices) -> list[int]:
-        idx = [int(i) for i in np.atleast_1d(np.asarray(sentence_indices, dtype=np.int64))]
-        bad = [i for i in idx if not 0 <= i < len(self.sentences)]
-        if bad:
-            raise InputError(f"displacements: sentence index(es) {bad} out of range "
-                             f"(have {len(self.sentences)} sentences)")
-        if len(set(idx)) != len(idx):
-            raise InputError(f"displacements: sentence index(es) repeated in {idx}")
-        return idx
+        return check_sentence_indices(sentence_indices, len(self.sentences))
 
 
 def _neutral_pose(rec: Recording, neutral: str) -> np.ndarray:
@@ -269,3 +262,15 @@ def sentence_rows(row_sentence, rows: int) -> tuple[np.ndarray, list[np.ndarray]
     groups = np.split(by_row, np.cumsum(counts)[:-1])
     appearance = np.argsort(first, kind="stable")
     return ids[appearance], [groups[i] for i in appearance]
+
+
+def check_sentence_indices(sentence_indices, n: int) -> list[int]:
+    """0-based sentence indices as ints; InputError if one is out of range or repeated."""
+    idx = [int(i) for i in np.atleast_1d(np.asarray(sentence_indices, dtype=np.int64))]
+    bad = [i for i in idx if not 0 <= i < n]
+    if bad:
+        raise InputError(f"displacements: sentence index(es) {bad} out of range "
+                         f"(have {n} sentences)")
+    if len(set(idx)) != len(idx):
+        raise InputError(f"displacements: sentence index(es) repeated in {idx}")
+    return idx

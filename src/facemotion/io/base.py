@@ -29,6 +29,17 @@ _MM_PER_UNIT = {
 UNITS = ("mm", "cm", "m", "in")
 
 
+
+def head_lines(path, n: int) -> tuple[Path, list[str]]:
+    """A readable text file's first ``n`` lines (UTF-8, a BOM dropped); InputError naming
+    the file if it cannot be read as text."""
+    p = check_readable(path)
+    try:
+        with open(p, encoding="utf-8-sig") as fh:
+            return p, [fh.readline() for _ in range(n)]
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{p}: cannot read as text ({type(e).__name__})") from None
+
 def unit_scale(unit: str, where: str) -> float:
     """Millimetres per ``unit`` (mm, cm, m, in); InputError naming ``where`` otherwise."""
     key = str(unit).strip().lower()

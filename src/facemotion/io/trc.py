@@ -15,6 +15,7 @@ from facemotion.io.base import (
     check_readable,
     fast_numeric_lines,
     format_coordinate,
+    head_lines,
     is_float,
     split_tab_line,
     unit_scale,
@@ -238,12 +239,7 @@ def write_trc(path, rec: Recording) -> None:
 
 def read_trc_labels(path) -> list[str]:
     """A TRC file's marker labels from its header lines alone."""
-    p = check_readable(path)
-    try:
-        with open(p, encoding="utf-8-sig") as fh:
-            head = [fh.readline() for _ in range(4)]
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"{p}: cannot read as text ({type(e).__name__})") from None
+    p, head = head_lines(path, 4)
     if not head[0].startswith("PathFileType") or not head[3].startswith("Frame#"):
         raise InputError(f"{p}: not a TRC file (no PathFileType/Frame# header lines)")
     return [x.strip() for x in split_tab_line(head[3])[2:] if x.strip()]

@@ -16,6 +16,7 @@ from facemotion.io.base import (
     check_readable,
     fast_numeric_lines,
     format_coordinate,
+    head_lines,
     is_float,
     unit_scale,
 )
@@ -174,12 +175,7 @@ def write_csv(path, rec: Recording) -> None:
 
 def read_csv_labels(path) -> list[str]:
     """A wide CSV's marker labels from its header line alone."""
-    p = check_readable(path)
-    try:
-        with open(p, encoding="utf-8-sig") as fh:
-            first = fh.readline()
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"{p}: cannot read as text ({type(e).__name__})") from None
+    _, (first,) = head_lines(path, 1)
     cols = next(csv.reader([first]), [])
     labels: list[str] = []
     for c in cols[1:]:
