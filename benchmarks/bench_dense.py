@@ -286,147 +286,169 @@ def case_talker(threads, quick):
 
 # ------------------------------------------------------------------------------------ workers
 
-def worker(argv):
-    kind = argv[0]
-    if kind == "load":
-        import logging
+def _worker_load(argv):
+    import logging
 
-        from facemotion.ingest import gaps, loading
-        from facemotion.io import registry as readers
-        trc, threads = argv[1], int(argv[2])
-        os.environ["OPENBLAS_NUM_THREADS"] = str(threads)
-        spent = {"read_s": 0.0, "fill_s": 0.0}
+    from facemotion.ingest import gaps, loading
+    from facemotion.io import registry as readers
+    trc, threads = argv[1], int(argv[2])
+    os.environ["OPENBLAS_NUM_THREADS"] = str(threads)
+    spent = {"read_s": 0.0, "fill_s": 0.0}
 
-        def timed(fn, key):
-            def inner(*a, **k):
-                t0 = time.perf_counter()
-                try:
-                    return fn(*a, **k)
-                finally:
-                    spent[key] += time.perf_counter() - t0
-            return inner
-        readers.read_recording = timed(readers.read_recording, "read_s")
-        gaps.fill_gaps = timed(gaps.fill_gaps, "fill_s")  # load_dataset imports them at call
-        logging.disable(logging.INFO)
-        t0, c0 = time.perf_counter(), time.process_time()
-        ds = loading.load_dataset([trc], "trc", train=[0], heldout=[])
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        assert np.isfinite(ds.displacements.A).all()
-        return {"wall_s": wall, "cpu_s": cpu, **spent}
-    if kind == "pandas":
-        import pandas as pd
-        trc = argv[1]
-        t0 = time.perf_counter()
-        df = pd.read_csv(trc, sep="\t", skiprows=5, header=None, engine="c")
-        wall = time.perf_counter() - t0
-        return {"wall_s": wall, "frames": len(df)}
-    if kind == "fillcmp":
-        from dense_face import dense_recording
-        from svd_fill_baseline import fill_gaps_svd
-
-        from facemotion.ingest.gaps import fill_gaps
-        from facemotion.io.trc import read_trc
-        trc = argv[1]
-        rec = read_trc(trc)
-        frames = rec.n_frames
-        truth, _ = dense_recording(frames, gaps_s=(2.0, 3.0, 5.0), rate=30.0, seed=0)
-        miss = ~np.isfinite(rec.points).all(axis=2)
-        t0 = time.perf_counter()
-        new, _ = fill_gaps(rec)
-        t_new = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        old = fill_gaps_svd(rec)
-        t_old = time.perf_counter() - t0
-
-        def err(x):  # truth is from the generator, the file has 6 decimals: ~1e-6 mm
-            return float(np.sqrt(np.mean((x.points - truth.points)[miss] ** 2)))
-        return {"new_s": t_new, "old_s": t_old, "new_err": err(new), "old_err": err(old)}
-    if kind == "read":
-        from facemotion.io import base as io_base
-        from facemotion.io.trc import read_trc
-        trc, mode = argv[1], argv[2]
-        base = vm_hwm_mib()
-        if mode == "exact":
-            io_base.FAST_TEXT = False
-        t0 = time.perf_counter()
-        rec = read_trc(trc)
-        wall = time.perf_counter() - t0
-        return {"wall_s": wall, "baseline_mib": base, "frames": rec.n_frames}
-    if kind == "write":
-        from facemotion.ingest.displacement_file import DisplacementsWriter
-        path, rows, n = argv[1], int(argv[2]), int(argv[3])
-        dense = len(argv) > 4
-        return write_synthetic_A(DisplacementsWriter, path, rows, n, dense)
-    if kind == "rank":
-        from facemotion.ingest.displacement_file import open_displacements
-        from facemotion.ranking.gram import gemm_rate, gram, gram_flops
-        from facemotion.ranking.routes import rank_markers
-        from facemotion.regions.prediction import error_curve
-        path, threads, k_max = argv[1], int(argv[2]), int(argv[3]) or None
-        t0 = time.perf_counter()
-        f = open_displacements(path)
-        S = len(f.sentences)
-        train = f.rows(list(range(max(1, S - max(1, S // 10)))))
-        held = f.rows(list(range(max(1, S - max(1, S // 10)), S)))
-        t1 = time.perf_counter()
-        rk = rank_markers(train, method="auto", k_max=k_max, threads=threads)
-        t_qr = time.perf_counter() - t1
-        out = {"method": rk.method, "qr_s": t_qr, "order": rk.order[:100].tolist()}
-        if k_max:
-            B = held.read()
-            error_curve(rk, B, f.labels, k_max=k_max)
-        out["wall_s"] = time.perf_counter() - t0
-        if k_max and f.shape[1] < 2000:  # the Gram pass alone, and the peak, same process
-            t2 = time.perf_counter()
-            gram(train, threads=threads)
-            tg = time.perf_counter() - t2
-            gf = gram_flops(*train.shape) / tg / 1e9
-            out.update(gram_gflops=gf, gram_frac=gf / gemm_rate(threads))
-        return out
-    if kind == "talker":
-        import logging
-
-        from facemotion.ingest.loading import load_dataset
-        from facemotion.ranking.routes import rank_markers, route_accuracy
-        from facemotion.virtual.dense import simulate_dense, write_dense_subject
-        from facemotion.virtual.talker import HEAD_LABELS
-        threads, n_sent = int(argv[1]), int(argv[2])
-        logging.disable(logging.INFO)
-        t0 = time.perf_counter()
-        subj = simulate_dense("D5023", seed=1, n_sentences=n_sent,
-                              shared_data=os.environ.get("FACEMOTION_SHARED_DATA"))
-        n_train = n_sent - max(1, n_sent // 4)
-        with tempfile.TemporaryDirectory(dir=OUT) as tmp:
-            paths = write_dense_subject(subj, tmp, "D", "trc")
-            ds = load_dataset([str(p) for p in paths], "trc", head_markers=list(HEAD_LABELS),
-                              exclude_markers=list(HEAD_LABELS), train=list(range(n_train)),
-                              heldout=list(range(n_train, n_sent))).displacements
-        A = ds.A[ds.row_sentence < n_train]
-        load_s = time.perf_counter() - t0
-        t1 = time.perf_counter()
-        rk = rank_markers(A, ds.labels, method="auto", k_max=100, threads=threads)
-        rand_s = time.perf_counter() - t1
-        t1 = time.perf_counter()
-        rank_markers(A, ds.labels, method="gram", threads=threads)
-        gram_s = time.perf_counter() - t1
-        acc = route_accuracy(A, rk, threads=threads)
-        return {"rows": A.shape[0], "n": A.shape[1], "load_s": load_s, "rand_s": rand_s,
-                "gram_s": gram_s, "method": rk.method, **acc}
-    if kind == "scipy":
-        import scipy.linalg
-        from threadpoolctl import threadpool_limits
-
-        from facemotion.ingest.displacement_file import open_displacements
-        path, threads = argv[1], int(argv[2])
-        f = open_displacements(path)
-        S = len(f.sentences)
-        A = f.rows(list(range(max(1, S - max(1, S // 10))))).read()
-        with threadpool_limits(threads, user_api="blas"):
+    def timed(fn, key):
+        def inner(*a, **k):
             t0 = time.perf_counter()
-            _, P = scipy.linalg.qr(A, mode="r", pivoting=True, check_finite=False)
-            wall = time.perf_counter() - t0
-        return {"wall_s": wall, "P": P[:100].tolist()}
-    raise SystemExit(f"unknown worker {kind}")
+            try:
+                return fn(*a, **k)
+            finally:
+                spent[key] += time.perf_counter() - t0
+        return inner
+    readers.read_recording = timed(readers.read_recording, "read_s")
+    gaps.fill_gaps = timed(gaps.fill_gaps, "fill_s")  # load_dataset imports them at call
+    logging.disable(logging.INFO)
+    t0, c0 = time.perf_counter(), time.process_time()
+    ds = loading.load_dataset([trc], "trc", train=[0], heldout=[])
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    assert np.isfinite(ds.displacements.A).all()
+    return {"wall_s": wall, "cpu_s": cpu, **spent}
+
+
+def _worker_pandas(argv):
+    import pandas as pd
+    trc = argv[1]
+    t0 = time.perf_counter()
+    df = pd.read_csv(trc, sep="\t", skiprows=5, header=None, engine="c")
+    wall = time.perf_counter() - t0
+    return {"wall_s": wall, "frames": len(df)}
+
+
+def _worker_fillcmp(argv):
+    from dense_face import dense_recording
+    from svd_fill_baseline import fill_gaps_svd
+
+    from facemotion.ingest.gaps import fill_gaps
+    from facemotion.io.trc import read_trc
+    trc = argv[1]
+    rec = read_trc(trc)
+    frames = rec.n_frames
+    truth, _ = dense_recording(frames, gaps_s=(2.0, 3.0, 5.0), rate=30.0, seed=0)
+    miss = ~np.isfinite(rec.points).all(axis=2)
+    t0 = time.perf_counter()
+    new, _ = fill_gaps(rec)
+    t_new = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    old = fill_gaps_svd(rec)
+    t_old = time.perf_counter() - t0
+
+    def err(x):  # truth is from the generator, the file has 6 decimals: ~1e-6 mm
+        return float(np.sqrt(np.mean((x.points - truth.points)[miss] ** 2)))
+    return {"new_s": t_new, "old_s": t_old, "new_err": err(new), "old_err": err(old)}
+
+
+def _worker_read(argv):
+    from facemotion.io import base as io_base
+    from facemotion.io.trc import read_trc
+    trc, mode = argv[1], argv[2]
+    base = vm_hwm_mib()
+    if mode == "exact":
+        io_base.FAST_TEXT = False
+    t0 = time.perf_counter()
+    rec = read_trc(trc)
+    wall = time.perf_counter() - t0
+    return {"wall_s": wall, "baseline_mib": base, "frames": rec.n_frames}
+
+
+def _worker_write(argv):
+    from facemotion.ingest.displacement_file import DisplacementsWriter
+    path, rows, n = argv[1], int(argv[2]), int(argv[3])
+    dense = len(argv) > 4
+    return write_synthetic_A(DisplacementsWriter, path, rows, n, dense)
+
+
+def _worker_rank(argv):
+    from facemotion.ingest.displacement_file import open_displacements
+    from facemotion.ranking.gram import gemm_rate, gram, gram_flops
+    from facemotion.ranking.routes import rank_markers
+    from facemotion.regions.prediction import error_curve
+    path, threads, k_max = argv[1], int(argv[2]), int(argv[3]) or None
+    t0 = time.perf_counter()
+    f = open_displacements(path)
+    S = len(f.sentences)
+    train = f.rows(list(range(max(1, S - max(1, S // 10)))))
+    held = f.rows(list(range(max(1, S - max(1, S // 10)), S)))
+    t1 = time.perf_counter()
+    rk = rank_markers(train, method="auto", k_max=k_max, threads=threads)
+    t_qr = time.perf_counter() - t1
+    out = {"method": rk.method, "qr_s": t_qr, "order": rk.order[:100].tolist()}
+    if k_max:
+        B = held.read()
+        error_curve(rk, B, f.labels, k_max=k_max)
+    out["wall_s"] = time.perf_counter() - t0
+    if k_max and f.shape[1] < 2000:  # the Gram pass alone, and the peak, same process
+        t2 = time.perf_counter()
+        gram(train, threads=threads)
+        tg = time.perf_counter() - t2
+        gf = gram_flops(*train.shape) / tg / 1e9
+        out.update(gram_gflops=gf, gram_frac=gf / gemm_rate(threads))
+    return out
+
+
+def _worker_talker(argv):
+    import logging
+
+    from facemotion.ingest.loading import load_dataset
+    from facemotion.ranking.routes import rank_markers, route_accuracy
+    from facemotion.virtual.dense import simulate_dense, write_dense_subject
+    from facemotion.virtual.talker import HEAD_LABELS
+    threads, n_sent = int(argv[1]), int(argv[2])
+    logging.disable(logging.INFO)
+    t0 = time.perf_counter()
+    subj = simulate_dense("D5023", seed=1, n_sentences=n_sent,
+                          shared_data=os.environ.get("FACEMOTION_SHARED_DATA"))
+    n_train = n_sent - max(1, n_sent // 4)
+    with tempfile.TemporaryDirectory(dir=OUT) as tmp:
+        paths = write_dense_subject(subj, tmp, "D", "trc")
+        ds = load_dataset([str(p) for p in paths], "trc", head_markers=list(HEAD_LABELS),
+                          exclude_markers=list(HEAD_LABELS), train=list(range(n_train)),
+                          heldout=list(range(n_train, n_sent))).displacements
+    A = ds.A[ds.row_sentence < n_train]
+    load_s = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    rk = rank_markers(A, ds.labels, method="auto", k_max=100, threads=threads)
+    rand_s = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    rank_markers(A, ds.labels, method="gram", threads=threads)
+    gram_s = time.perf_counter() - t1
+    acc = route_accuracy(A, rk, threads=threads)
+    return {"rows": A.shape[0], "n": A.shape[1], "load_s": load_s, "rand_s": rand_s,
+            "gram_s": gram_s, "method": rk.method, **acc}
+
+
+def _worker_scipy(argv):
+    import scipy.linalg
+    from threadpoolctl import threadpool_limits
+
+    from facemotion.ingest.displacement_file import open_displacements
+    path, threads = argv[1], int(argv[2])
+    f = open_displacements(path)
+    S = len(f.sentences)
+    A = f.rows(list(range(max(1, S - max(1, S // 10))))).read()
+    with threadpool_limits(threads, user_api="blas"):
+        t0 = time.perf_counter()
+        _, P = scipy.linalg.qr(A, mode="r", pivoting=True, check_finite=False)
+        wall = time.perf_counter() - t0
+    return {"wall_s": wall, "P": P[:100].tolist()}
+
+
+WORKERS = {name: globals()[f"_worker_{name}"] for name in
+           ("load", "pandas", "fillcmp", "read", "write", "rank", "talker", "scipy")}
+
+
+def worker(argv):
+    """Run one case in this (fresh) process: ``argv`` is the case's name and arguments."""
+    if argv[0] not in WORKERS:
+        raise SystemExit(f"unknown worker {argv[0]}")
+    return WORKERS[argv[0]](argv)
 
 
 def write_synthetic_A(Writer, path, rows, n, dense):

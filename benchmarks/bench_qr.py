@@ -74,90 +74,80 @@ def load_average() -> float:
     return os.getloadavg()[0]
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="fewer repeats, skip slow baselines")
-    ap.add_argument("--strict", action="store_true", help="exit 1 if a target is missed")
-    ap.add_argument("--threads", type=int, default=1,
-                    help="BLAS threads for ours and for the baselines alike (default 1, as the "
-                    "study's jobs run; scipy's pivoted QR with 2 threads on these tall, narrow "
-                    "matrices swings by 2x between runs)")
-    ap.add_argument("--page", help="replace the table between the bench-qr markers there "
-                    "(docs/performance.md)")
-    args = ap.parse_args(argv)
-    reps = 3 if args.quick else 9
-    T = args.threads
-    rows = []  # (benchmark, scale, baseline_s, fast_s, ratio, target, met, note)
-    load0 = load_average()
-    peak0 = gemm_rate(T)
+class Rows:
+    """The benchmark's rows: (benchmark, scale, baseline_s, fast_s, ratio, target, met, note)."""
 
-    def record(name, scale, base, fast, target, note="", higher_is_better=True):
+    def __init__(self):
+        self.rows: list[tuple] = []
+
+    def record(self, name, scale, base, fast, target, note="", higher_is_better=True):
         ratio = base / fast if fast > 0 else float("inf")
         if higher_is_better:
             met = ratio >= target
         else:  # target is an upper bound on `fast` (seconds)
             ratio = float("nan")
             met = fast <= target
-        rows.append((name, scale, base, fast, ratio, target, met, note))
+        self.rows.append((name, scale, base, fast, ratio, target, met, note))
 
-    fractions = {}
-    with threadpool_limits(T, user_api="blas"):
-        for scale, fps in (("paper", 200), ("10x", 2000)):
-            A, labels, rs = synthetic(fps, seed=1)
-            r = reps if scale == "paper" else max(3, reps - 2)
-            # -- marker ranking: ours and scipy's pivoted QR alternately, same threads -------
-            (t_fast, t_base, t_tsqr), (rk, (_, P), rk2) = median_times(
-                [partial(rank_markers, A, labels, threads=T),
-                 partial(scipy.linalg.qr, A, mode="r", pivoting=True, check_finite=False),
-                 partial(rank_markers, A, labels, method="tsqr", threads=T)], r)
-            assert np.array_equal(rk.order, P), "ranking pivots differ from scipy"
-            assert np.array_equal(rk2.order, P), "tsqr pivots differ from scipy"
-            target = 5.0 if scale == "paper" else 20.0
-            record("ranking_auto_vs_scipy_pivoted_qr", scale, t_base, t_fast, target,
-                   f"{A.shape[0]}x{A.shape[1]}; route={rk.method}; {T} BLAS threads both; "
-                   f"median of {r} interleaved")
-            record("ranking_tsqr_vs_scipy_pivoted_qr", scale, t_base, t_tsqr, 0.0, "info only")
-            (t_pass, t_tsqr_pass, t_sw), (_, _, sw) = median_times(
-                [partial(gram, A, threads=T), partial(tsqr_r, A),
-                 partial(sentence_sweep, A, labels, rs)], r)
-            fractions[scale] = gram_flops(*A.shape) / t_pass / 1e9 / peak0
-            rows.append(("AtA_pass_fraction_of_gemm_peak", scale, t_pass, t_pass,
-                         fractions[scale], 0.0, True,
-                         f"{gram_flops(*A.shape) / t_pass / 1e9:.1f} GFLOP/s of {peak0:.1f}"))
-            if scale == "paper" or not args.quick:
-                (t_nv,), (nv,) = median_times(
-                    [partial(sentence_sweep_naive, A, labels, rs)],
-                    1 if scale != "paper" else max(1, r // 3))
-                assert (sw.marker == nv.marker).all(), "sweep pivots differ from refactoring"
-                record("sentence_sweep_vs_refactor_each_step", scale, t_nv, t_sw, 50.0)
-            passes = t_sw / t_pass  # ratio column = passes (lower is better)
-            rows.append(("sentence_sweep_passes_over_data", scale, t_pass, t_sw, passes, 1.5,
-                         passes <= 1.5, f"baseline = one pass A^T A; TSQR pass "
-                         f"{t_tsqr_pass * 1e3:.2f} ms = {t_sw / t_tsqr_pass:.2f} TSQR passes"))
-            if scale != "paper":
-                continue
-            # -- all-k error curves (training = 40 sentences, held-out = 10) -------------------
-            train = rs < 40
-            At, Bh = A[train], A[~train]
-            rkt = rank_markers(At, labels)
-            (t_c, t_g), (c, g) = median_times(
-                [partial(error_curve, rkt, Bh, labels),
-                 partial(error_curve_rms, rkt, Bh, labels)], r)
-            (t_cn, t_gn), (cn, gn) = median_times(
-                [partial(error_curve_naive, At, Bh, labels, rkt),
-                 partial(error_curve_naive, At, Bh, labels, rkt, measures="rms")], 1)
-            assert np.allclose(c.mean_abs_error_mm, cn.mean_abs_error_mm, rtol=1e-7)
-            assert np.allclose(g.rms_error_mm, gn.rms_error_mm, rtol=1e-7)
-            record("error_curve_mean3d_vs_per_k_lstsq", scale, t_cn, t_c, 5.0,
-                   f"train {At.shape[0]} rows, held-out {Bh.shape[0]} rows, k=1..56")
-            record("error_curve_rms_gram_vs_per_k_lstsq", scale, t_gn, t_g, 100.0)
-            # -- stability replicates ------------------------------------------------------------
-            (t_st,), _ = median_times([partial(stability, A, labels, rs, n_replicates=1000)], 1)
-            record("stability_1000_replicates_seconds", scale, float("nan"), t_st, 10.0,
-                   "50 sentences x 57 markers", higher_is_better=False)
-    peak1 = gemm_rate(T)
-    load1 = load_average()
 
+def bench_ranking(rows: Rows, scale: str, A, labels, rs, r: int, T: int, peak0: float,
+                  quick: bool) -> None:
+    """Marker ranking, the A^T A pass and the sentence sweep at one scale."""
+    # -- marker ranking: ours and scipy's pivoted QR alternately, same threads -------
+    (t_fast, t_base, t_tsqr), (rk, (_, P), rk2) = median_times(
+        [partial(rank_markers, A, labels, threads=T),
+         partial(scipy.linalg.qr, A, mode="r", pivoting=True, check_finite=False),
+         partial(rank_markers, A, labels, method="tsqr", threads=T)], r)
+    assert np.array_equal(rk.order, P), "ranking pivots differ from scipy"
+    assert np.array_equal(rk2.order, P), "tsqr pivots differ from scipy"
+    target = 5.0 if scale == "paper" else 20.0
+    rows.record("ranking_auto_vs_scipy_pivoted_qr", scale, t_base, t_fast, target,
+                f"{A.shape[0]}x{A.shape[1]}; route={rk.method}; {T} BLAS threads both; "
+                f"median of {r} interleaved")
+    rows.record("ranking_tsqr_vs_scipy_pivoted_qr", scale, t_base, t_tsqr, 0.0, "info only")
+    (t_pass, t_tsqr_pass, t_sw), (_, _, sw) = median_times(
+        [partial(gram, A, threads=T), partial(tsqr_r, A),
+         partial(sentence_sweep, A, labels, rs)], r)
+    fraction = gram_flops(*A.shape) / t_pass / 1e9 / peak0
+    rows.rows.append(("AtA_pass_fraction_of_gemm_peak", scale, t_pass, t_pass, fraction, 0.0,
+                      True, f"{gram_flops(*A.shape) / t_pass / 1e9:.1f} GFLOP/s of "
+                      f"{peak0:.1f}"))
+    if scale == "paper" or not quick:
+        (t_nv,), (nv,) = median_times(
+            [partial(sentence_sweep_naive, A, labels, rs)],
+            1 if scale != "paper" else max(1, r // 3))
+        assert (sw.marker == nv.marker).all(), "sweep pivots differ from refactoring"
+        rows.record("sentence_sweep_vs_refactor_each_step", scale, t_nv, t_sw, 50.0)
+    passes = t_sw / t_pass  # ratio column = passes (lower is better)
+    rows.rows.append(("sentence_sweep_passes_over_data", scale, t_pass, t_sw, passes, 1.5,
+                      passes <= 1.5, f"baseline = one pass A^T A; TSQR pass "
+                      f"{t_tsqr_pass * 1e3:.2f} ms = {t_sw / t_tsqr_pass:.2f} TSQR passes"))
+
+
+def bench_curves_and_stability(rows: Rows, scale: str, A, labels, rs, r: int) -> None:
+    """All-k error curves (training = 40 sentences, held-out = 10) and the stability
+    replicates, at the paper's scale."""
+    train = rs < 40
+    At, Bh = A[train], A[~train]
+    rkt = rank_markers(At, labels)
+    (t_c, t_g), (c, g) = median_times(
+        [partial(error_curve, rkt, Bh, labels),
+         partial(error_curve_rms, rkt, Bh, labels)], r)
+    (t_cn, t_gn), (cn, gn) = median_times(
+        [partial(error_curve_naive, At, Bh, labels, rkt),
+         partial(error_curve_naive, At, Bh, labels, rkt, measures="rms")], 1)
+    assert np.allclose(c.mean_abs_error_mm, cn.mean_abs_error_mm, rtol=1e-7)
+    assert np.allclose(g.rms_error_mm, gn.rms_error_mm, rtol=1e-7)
+    rows.record("error_curve_mean3d_vs_per_k_lstsq", scale, t_cn, t_c, 5.0,
+                f"train {At.shape[0]} rows, held-out {Bh.shape[0]} rows, k=1..56")
+    rows.record("error_curve_rms_gram_vs_per_k_lstsq", scale, t_gn, t_g, 100.0)
+    (t_st,), _ = median_times([partial(stability, A, labels, rs, n_replicates=1000)], 1)
+    rows.record("stability_1000_replicates_seconds", scale, float("nan"), t_st, 10.0,
+                "50 sentences x 57 markers", higher_is_better=False)
+
+
+def write_rows(rows: list[tuple]) -> None:
+    """The rows on the terminal and in benchmarks/out/bench_qr.tsv."""
     header = ["benchmark", "scale", "baseline_s", "fast_s", "ratio", "target", "met", "note"]
     print("\t".join(header))
     for row in rows:
@@ -173,13 +163,41 @@ def main(argv=None) -> int:
             fh.write(f"{name}\t{scale}\t{base:.6g}\t{fast:.6g}\t{ratio:.6g}\t{target:g}\t"
                      f"{str(bool(met)).lower()}\t{note}\n")
     tmp.replace(out / "bench_qr.tsv")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer repeats, skip slow baselines")
+    ap.add_argument("--strict", action="store_true", help="exit 1 if a target is missed")
+    ap.add_argument("--threads", type=int, default=1,
+                    help="BLAS threads for ours and for the baselines alike (default 1, as the "
+                    "study's jobs run; scipy's pivoted QR with 2 threads on these tall, narrow "
+                    "matrices swings by 2x between runs)")
+    ap.add_argument("--page", help="replace the table between the bench-qr markers there "
+                    "(docs/performance.md)")
+    args = ap.parse_args(argv)
+    reps = 3 if args.quick else 9
+    T = args.threads
+    rows = Rows()
+    load0 = load_average()
+    peak0 = gemm_rate(T)
+    with threadpool_limits(T, user_api="blas"):
+        for scale, fps in (("paper", 200), ("10x", 2000)):
+            A, labels, rs = synthetic(fps, seed=1)
+            r = reps if scale == "paper" else max(3, reps - 2)
+            bench_ranking(rows, scale, A, labels, rs, r, T, peak0, args.quick)
+            if scale == "paper":
+                bench_curves_and_stability(rows, scale, A, labels, rs, r)
+    peak1 = gemm_rate(T)
+    load1 = load_average()
+    write_rows(rows.rows)
     conditions = {"threads": T, "peak": (peak0, peak1), "load": (load0, load1),
                   "reps": reps, "quick": args.quick}
-    text = page_table(rows, conditions)
+    text = page_table(rows.rows, conditions)
     print(text)
     if args.page:
         update_page(args.page, text, "bench-qr")
-    missed = [r[0] + "@" + r[1] for r in rows if not r[6]]
+    missed = [r[0] + "@" + r[1] for r in rows.rows if not r[6]]
     if missed:
         print("targets missed: " + ", ".join(missed), file=sys.stderr)
     return 1 if (missed and args.strict) else 0

@@ -29,23 +29,71 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _trajectory_figure(study: Path, ds: str, held, ranking):
+    """The trajectory figure of a dataset's first held-out sentence, from its table."""
+    import numpy as np
+    import pandas as pd
+
+    from facemotion.plots.error_curves import plot_trajectory
+    from facemotion.regions.prediction import predict
+
+    traj = pd.read_csv(study / ds / "eval" / "trajectory_errors.tsv", sep="\t",
+                       dtype={"marker": str, "requested_marker": str}, keep_default_na=False)
+    marker, requested = traj["marker"][0], traj["requested_marker"][0]
+    one = held.subset([0])
+    j = one.labels.index(marker)
+    measured = one.A[:, j].reshape(-1, 3)
+    model = predict(ranking, 10, one.A)[:, j].reshape(-1, 3)
+    t = np.arange(measured.shape[0]) / one.rate
+    in_basis = marker in ranking.labels_in_order[:10]
+    note = (None if requested == marker else f"marker {requested} requested, not in this "
+            "dataset" if requested else "no marker requested: the secondary marker that "
+            "moves most")
+    return lambda: plot_trajectory(t, measured, model, marker=marker,
+                                   sentence=one.sentences[0], k=10, in_basis=in_basis,
+                                   note=note)
+
+
+def _gaps_figure(study: Path, ds: str, rate: float):
+    """The gap raster of a dataset: the markers' gaps of gap_report.tsv (counts and longest
+    gap) placed at fixed pseudo-random times (the loaded masks are not kept)."""
+    import numpy as np
+    import pandas as pd
+
+    from facemotion.plots.gaps import plot_gaps
+
+    report = pd.read_csv(study / ds / "data" / "gap_report.tsv", sep="\t",
+                         dtype={"marker": str})
+    sent = pd.read_csv(study / ds / "data" / "sentences.tsv", sep="\t")
+    frames = int(report["frames"].max())
+    filled = np.zeros((frames, len(report)), dtype=bool)
+    rng = np.random.default_rng(0)
+    for j, row in enumerate(report.itertuples()):
+        for g in range(int(row.n_gaps)):
+            n = int(row.longest_gap_frames) if g == 0 else 1 + int(rng.integers(10))
+            a = int(rng.integers(0, frames - n))
+            filled[a:a + n, j] = True
+    starts = np.cumsum([0.0, *sent["duration_s"].to_numpy()[:-1]])
+    markers = report["marker"].tolist()
+    return lambda: plot_gaps(np.arange(len(filled)) / rate, np.zeros_like(filled), filled,
+                             markers, sentence_bounds=starts)
+
+
 def _figures(study: Path):
     """(name, dataset, build) for every figure: build() returns a matplotlib Figure."""
-    import numpy as np
     import pandas as pd
 
     from facemotion.ingest.displacement_file import load_displacements
     from facemotion.ingest.displacements import split_roles
     from facemotion.plots.comparison import plot_paper_comparison
-    from facemotion.plots.error_curves import plot_error_curves, plot_trajectory
-    from facemotion.plots.gaps import plot_gaps
+    from facemotion.plots.error_curves import plot_error_curves
     from facemotion.plots.rank import plot_r_values
     from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
     from facemotion.plots.selection import plot_selection_agreement
     from facemotion.plots.sweep import plot_sentence_sweep
     from facemotion.ranking.routes import rank_for_study
-    from facemotion.regions.prediction import fit_coefficients, predict
-    from facemotion.regions.selector import selection_table
+    from facemotion.regions.prediction import fit_coefficients
+    from facemotion.ranking.result import selection_table
 
     # the default study's order (S1, S2a, S2b, then the starred ones)
     datasets = sorted((p.parent.parent.name for p in study.glob("*/data/displacements.npz")),
@@ -67,23 +115,7 @@ def _figures(study: Path):
         n_held = len(held.labels)
         out.append(("error_curve", ds, lambda c=curve, lab=lab, n=n_held:
                     plot_error_curves({lab: c}, n_markers={lab: n})))
-        traj = pd.read_csv(study / ds / "eval" / "trajectory_errors.tsv", sep="\t",
-                           dtype={"marker": str, "requested_marker": str},
-                           keep_default_na=False)
-        marker, requested = traj["marker"][0], traj["requested_marker"][0]
-        one = held.subset([0])
-        j = one.labels.index(marker)
-        measured = one.A[:, j].reshape(-1, 3)
-        model = predict(ranking, 10, one.A)[:, j].reshape(-1, 3)
-        t = np.arange(measured.shape[0]) / one.rate
-        in_basis = marker in ranking.labels_in_order[:10]
-        note = (None if requested == marker else f"marker {requested} requested, not in this "
-                "dataset" if requested else "no marker requested: the secondary marker that "
-                "moves most")
-        out.append(("trajectory", ds, lambda t=t, m=measured, p=model, mk=marker, s=one,
-                    ib=in_basis, nt=note: plot_trajectory(
-                        t, m, p, marker=mk, sentence=s.sentences[0], k=10, in_basis=ib,
-                        note=nt)))
+        out.append(("trajectory", ds, _trajectory_figure(study, ds, held, ranking)))
         r_table = pd.read_csv(study / ds / "qr" / "r_values.tsv", sep="\t",
                               dtype={"marker": str})
         r_tables[lab] = r_table
@@ -92,24 +124,7 @@ def _figures(study: Path):
         sweep = pd.read_csv(study / ds / "qr" / "sentence_sweep.tsv", sep="\t",
                             dtype={"marker": str})
         out.append(("sentence_sweep", ds, lambda s=sweep: plot_sentence_sweep(s)))
-        # the gap raster: the markers' gaps of gap_report.tsv (counts and longest gap) placed
-        # at fixed pseudo-random times (the loaded masks are not kept)
-        report = pd.read_csv(study / ds / "data" / "gap_report.tsv", sep="\t",
-                             dtype={"marker": str})
-        sent = pd.read_csv(study / ds / "data" / "sentences.tsv", sep="\t")
-        frames = int(report["frames"].max())
-        filled = np.zeros((frames, len(report)), dtype=bool)
-        rng = np.random.default_rng(0)
-        for j, row in enumerate(report.itertuples()):
-            for g in range(int(row.n_gaps)):
-                n = int(row.longest_gap_frames) if g == 0 else 1 + int(rng.integers(10))
-                a = int(rng.integers(0, frames - n))
-                filled[a:a + n, j] = True
-        starts = np.cumsum([0.0, *sent["duration_s"].to_numpy()[:-1]])
-        markers = report["marker"].tolist()
-        out.append(("gaps", ds, lambda f=filled, lab=markers, st=starts,
-                    r=d.rate: plot_gaps(np.arange(len(f)) / r, np.zeros_like(f), f, lab,
-                                        sentence_bounds=st)))
+        out.append(("gaps", ds, _gaps_figure(study, ds, d.rate)))
     out.append(("error_curves_all", "all", lambda: plot_error_curves(curves)))
     out.append(("r_values_all", "all", lambda: plot_r_values(r_tables,
                                                               tolerances=(0.25, 0.5, 1.0))))

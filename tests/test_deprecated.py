@@ -229,3 +229,34 @@ def test_importing_the_package_and_its_modules_touches_no_old_path():
         loaded = [m for m in sys.modules if m.removeprefix("facemotion.") in OLD_PATHS]
         assert not loaded, loaded
     """)
+
+
+#: 0.1 names dropped in 0.2 (CHANGELOG.md, "Removed"): the one-job-over-all-datasets helpers
+#: and the constants the registries replace.
+REMOVED_IN_0_2 = {
+    "dense_talker.DENSE_FORMATS", "dense_talker.DENSE_TALKER_SEED", "snakemake_adapter.ACROSS",
+    "snakemake_adapter.across_provenance", "snakemake_adapter.dataset_parts",
+    "snakemake_adapter.figure_paths", "snakemake_adapter.run_per_dataset",
+    "subjects.DESIGN_SENTENCES", "subjects.FORMATS", "synth.DESIGN_TALKERS",
+}
+
+
+def test_every_public_name_of_0_1_still_resolves_but_the_removed_ones():
+    """tests/data/api_0_1.json lists the public names each 0.1 module defined (read from the
+    0.1 sources); through the shims every one resolves, except the removals the changelog
+    lists, and those are in the changelog."""
+    api = json.loads((REPO / "tests" / "data" / "api_0_1.json").read_text())
+    code = ("import importlib, json, sys, warnings\n"
+            "warnings.simplefilter('ignore')\n"
+            "api = json.loads(sys.argv[1]); missing = []\n"
+            "for mod, names in api.items():\n"
+            "    m = importlib.import_module('facemotion.' + mod)\n"
+            "    missing += [f'{mod}.{n}' for n in names if not hasattr(m, n)]\n"
+            "print(json.dumps(missing))\n")
+    proc = subprocess.run([sys.executable, "-c", code, json.dumps(api)], capture_output=True,
+                          text=True, check=True)
+    assert set(json.loads(proc.stdout)) == REMOVED_IN_0_2
+    changelog = (REPO / "CHANGELOG.md").read_text()
+    removed = changelog[changelog.index("### Removed"):changelog.index("## [0.1.0]")]
+    for name in REMOVED_IN_0_2:
+        assert name.rsplit(".", 1)[1] in removed, name

@@ -48,7 +48,7 @@ OLD_PATHS: dict[str, tuple[str, ...]] = {
     "readers": ("io.registry", "io.base", "io.c3d", "io.trc", "io.wide_csv"),
     "recording": ("io.recording",),
     "redundancy": ("regions.redundancy",),
-    "selector": ("regions.selector",),
+    "selector": ("regions.selector", "ranking.result"),
     "sentence_sweep": ("ranking.stability",),
     "settings": ("study.settings",),
     "snakemake_adapter": ("study.adapter",),
