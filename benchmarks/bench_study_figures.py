@@ -91,9 +91,9 @@ def _figures(study: Path):
     from facemotion.plots.regions import plot_orthogonal_directions, plot_region_maps
     from facemotion.plots.selection import plot_selection_agreement
     from facemotion.plots.sweep import plot_sentence_sweep
+    from facemotion.ranking.result import selection_table
     from facemotion.ranking.routes import rank_for_study
     from facemotion.regions.prediction import fit_coefficients
-    from facemotion.ranking.result import selection_table
 
     # the default study's order (S1, S2a, S2b, then the starred ones)
     datasets = sorted((p.parent.parent.name for p in study.glob("*/data/displacements.npz")),

@@ -175,3 +175,19 @@ def _fail(log: logging.Logger, sm, msg: str) -> None:
     log.error(msg)
     print(msg, file=sys.stderr, flush=True)
     _end(log, sm, 1)
+
+
+def compile_package() -> bool:
+    """Write the package's bytecode (``__pycache__``) before the jobs start, so that no job
+    compiles the package's modules again: each job is a fresh Python process, and where
+    ``PYTHONDONTWRITEBYTECODE`` is set (or the first jobs run side by side) every job compiled
+    them, about 0.09 CPU-s a job. Python ignores bytecode older than its source, so a stale
+    file never runs. Returns False when the package's folder cannot be written (then the jobs
+    compile as before)."""
+    import compileall
+
+    package = Path(__file__).resolve().parents[1]
+    try:
+        return bool(compileall.compile_dir(package, quiet=2, workers=1))
+    except OSError:
+        return False
