@@ -38,6 +38,23 @@ from facemotion._version import __version__ as __version__
 
 _deprecated.install()  # the 0.1 module paths (facemotion.pivoted_qr, ...) for one release
 
+
+def _in_snakemake_script() -> bool:
+    """Whether this process is a Snakemake job running one of the workflow's scripts (its
+    preamble leaves a ``snakemake`` object and ``__real_file__`` in ``__main__``)."""
+    main = sys.modules.get("__main__")
+    kind = type(getattr(main, "snakemake", None))
+    return hasattr(main, "__real_file__") and kind.__module__.split(".")[0] == "snakemake"
+
+
+if _in_snakemake_script():
+    # The job's script imports numpy, pandas, SciPy and matplotlib next: about a million
+    # objects, whose creation sets off the collector's full scans, which find nothing to free.
+    # facemotion.study.adapter.run_step freezes them and turns the collector back on.
+    import gc
+
+    gc.disable()
+
 # public name -> (module, attribute); imported on first access (PEP 562)
 _LAZY = {
     "read": ("facemotion.io.registry", "read_recording"),

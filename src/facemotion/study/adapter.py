@@ -125,6 +125,7 @@ def run_step(sm, main: Callable) -> None:
     # whole job: keep it out of the garbage collector's full scans, which the figures' many
     # short-lived objects trigger (5-10 % of a figure's CPU), and out of forked workers' pages.
     gc.freeze()
+    gc.enable()  # off while a job's script imports its modules (facemotion/__init__.py)
     log = setup_logging(sm)
     try:
         for p in clean_temporary_files(getattr(sm, "output", [])):
