@@ -129,3 +129,39 @@ def test_a_jobs_own_process_ends_once_its_outputs_and_log_are_written(tmp_path, 
         assert proc.returncode == 1
         assert proc.stderr.strip() == "facemotion: rank_markers: a clear cause"
         assert log.strip().endswith("facemotion: rank_markers: a clear cause")
+
+
+SCRIPT = textwrap.dedent('''
+    import gc, sys
+    from pathlib import Path
+    out = Path(sys.argv[1])
+
+    class Snakemake:  # what Snakemake's script preamble leaves in __main__
+        rule = "rank_markers"
+        input = params = wildcards = {}
+        output = {}
+        log = [str(out.parent / "job.log")]
+    Snakemake.__module__ = "snakemake.iocontainers"
+    snakemake = Snakemake()
+    if sys.argv[2] == "script":
+        __real_file__ = __file__
+
+    import facemotion.study.adapter as adapter  # the job script's imports
+    during_imports = gc.isenabled()
+
+    def main(sm, log, prov):
+        out.write_text(f"{during_imports} {gc.isenabled()}")
+
+    adapter.run_step(snakemake, main)
+''')
+
+
+@pytest.mark.parametrize("kind, expected", [("script", "False True"), ("other", "True True")])
+def test_a_job_script_imports_with_the_collector_off_and_runs_its_step_with_it_on(
+        tmp_path, kind, expected):
+    """In a Snakemake script process the collector is off while the script imports its modules
+    and on in the step; in any other process importing facemotion leaves it alone."""
+    script = tmp_path / "job.py"
+    script.write_text(SCRIPT)
+    subprocess.run([sys.executable, str(script), str(tmp_path / "out.txt"), kind], check=True)
+    assert (tmp_path / "out.txt").read_text() == expected
