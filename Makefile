@@ -61,9 +61,12 @@ bench: venv
 
 
 # API reference from the docstrings -> docs/api/index.html (git-ignored): the package (its
-# __all__ is the top-level API) and each sub-package with every module in it.
+# __all__ is the top-level API, facemotion.lips among it) and each sub-package with every module
+# in it (facemotion.lips's modules named one by one: its __all__ is its own small API).
 docs: venv
-	$(BIN)/pdoc -o docs/api facemotion $$(cd src && find facemotion -mindepth 1 -maxdepth 1 -type d ! -name __pycache__ | sort | tr / .)
+	$(BIN)/pdoc -o docs/api facemotion $$(cd src && { find facemotion -mindepth 1 -maxdepth 1 -type d \
+	  ! -name __pycache__ ! -name lips; find facemotion/lips -name '*.py' ! -name '__init__.py'; } \
+	  | sed 's/\.py$$//' | sort | tr / .)
 
 # The numbers, tables and figures of README.md and docs/ from the studies' results (run
 # `make study real dense` first; a study not run is skipped with a line saying so).

@@ -135,7 +135,7 @@ def _call(name):
     from facemotion.io.registry import get_format
     from facemotion.lips.fem import assemble_stiffness, material_matrix
     from facemotion.lips.llse import LLSE
-    from facemotion.lips.mesh import unit_scale
+    from facemotion.lips.mesh import model_units_per_mm
     from facemotion.plots.save import figure_paths
     from facemotion.ranking.epsilon_rank import epsilon_rank
     from facemotion.ranking.routes import rank_for_study, rank_markers, study_route
@@ -159,7 +159,7 @@ def _call(name):
         "nu": lambda: material_matrix(nu=0.5),
         "n_frames": lambda: lips.make_virtual_talker(n_frames=1),
         "n_modes": lambda: lips.modes(np.ones((4, 9)) + np.eye(4, 9), n_modes=50),
-        "model_extent": lambda: unit_scale(_mesh(), (1.0, 2.0)),
+        "model_extent": lambda: model_units_per_mm(_mesh(), (1.0, 2.0)),
         "noise_var": lambda: LLSE.from_data(_A().T).estimate(np.zeros((1, 2)), [0, 1], -1.0),
         "k_max (optimality)": lambda: subset_optimality(_A(), _labels(), k_max=0),
         "noise_mm": lambda: find_redundant_markers(_A(), _labels(), rows, 60.0, noise_mm=0),
