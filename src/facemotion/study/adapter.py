@@ -178,17 +178,43 @@ def _fail(log: logging.Logger, sm, msg: str) -> None:
     _end(log, sm, 1)
 
 
-def compile_package() -> bool:
-    """Write the package's bytecode (``__pycache__``) before the jobs start, so that no job
-    compiles the package's modules again: each job is a fresh Python process, and where
-    ``PYTHONDONTWRITEBYTECODE`` is set (or the first jobs run side by side) every job compiled
-    them, about 0.09 CPU-s a job. Python ignores bytecode older than its source, so a stale
-    file never runs. Returns False when the package's folder cannot be written (then the jobs
-    compile as before)."""
-    import compileall
+def compile_package(package: str | os.PathLike | None = None) -> int:
+    """Write the bytecode (``__pycache__``) of ``package`` (a folder; default facemotion's)
+    before the jobs start, so that no job compiles the package's modules again: each job is a
+    fresh Python process, and where ``PYTHONDONTWRITEBYTECODE`` is set every job compiled them,
+    about 0.09 CPU-s a job. Returns the number of files written.
 
-    package = Path(__file__).resolve().parents[1]
-    try:
-        return bool(compileall.compile_dir(package, quiet=2, workers=1))
-    except OSError:
-        return False
+    Each file is written whole or not at all (``atomic_write_bytes`` writes until every byte
+    is out, and a failed write leaves nothing; Python's own writer can install a cut file under
+    a file-size limit, which then breaks every import of the module), and an existing file is
+    kept only when it is whole and as new as its source. Nothing is written under a file-size
+    limit, nor where the package's folder cannot be written (the jobs then compile as before).
+    """
+    import importlib.util
+    import marshal
+    import resource
+
+    from facemotion.io.atomic import atomic_write_bytes
+
+    if resource.getrlimit(resource.RLIMIT_FSIZE)[0] != resource.RLIM_INFINITY:
+        return 0
+    written = 0
+    root = Path(package) if package is not None else Path(__file__).resolve().parents[1]
+    for source in sorted(root.rglob("*.py")):
+        cached = Path(importlib.util.cache_from_source(str(source)))
+        st = source.stat()
+        # PEP 552 header: magic, flags 0 (checked by timestamp), source mtime and size
+        header = (importlib.util.MAGIC_NUMBER + bytes(4)
+                  + (int(st.st_mtime) & 0xFFFFFFFF).to_bytes(4, "little")
+                  + (st.st_size & 0xFFFFFFFF).to_bytes(4, "little"))
+        with contextlib.suppress(OSError, EOFError, ValueError, TypeError):
+            old = cached.read_bytes()
+            if old[:16] == header and marshal.loads(old[16:]) is not None:
+                continue
+        code = compile(source.read_bytes(), str(source), "exec", dont_inherit=True)
+        try:
+            atomic_write_bytes(cached, header + marshal.dumps(code))
+        except OSError:
+            return written
+        written += 1
+    return written
