@@ -48,10 +48,6 @@ rule all:
         "all: study '{STUDY}' complete".format(STUDY=STUDY)
 
 
-onstart:
-    compile_package()
-
-
 onsuccess:
     print_closing_summary()
 

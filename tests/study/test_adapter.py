@@ -1,7 +1,6 @@
 """The script adapter: one job, its log, its one-line errors and the end of its process."""
 
 import importlib.util
-import os
 import re
 import subprocess
 import sys
@@ -166,34 +165,3 @@ def test_a_job_script_imports_with_the_collector_off_and_runs_its_step_with_it_o
     script.write_text(SCRIPT)
     subprocess.run([sys.executable, str(script), str(tmp_path / "out.txt"), kind], check=True)
     assert (tmp_path / "out.txt").read_text() == expected
-
-
-def test_the_package_bytecode_is_written_whole_and_used(tmp_path):
-    """compile_package writes each module's bytecode once, whole, where Python looks for it;
-    Python imports the module from it; a cut file is written again; under a file-size limit
-    nothing is written (Python's own writer would install a cut file there)."""
-    import importlib.util
-    import marshal
-
-    from facemotion.study.adapter import compile_package
-
-    pkg = tmp_path / "pkgx"
-    pkg.mkdir()
-    (pkg / "__init__.py").write_text("")
-    (pkg / "big.py").write_text("VALUES = " + repr(list(range(20000))) + "\n")
-    cached = Path(importlib.util.cache_from_source(str(pkg / "big.py")))
-    limited = ("import resource, sys; resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096)); "
-               "from facemotion.study.adapter import compile_package; "
-               "print(compile_package(sys.argv[1]))")
-    out = subprocess.run([sys.executable, "-c", limited, str(pkg)], capture_output=True,
-                         text=True, check=True).stdout
-    assert out.strip() == "0" and not cached.exists()
-    assert compile_package(pkg) == 2 and compile_package(pkg) == 0
-    assert marshal.loads(cached.read_bytes()[16:]) is not None
-    whole = cached.read_bytes()
-    cached.write_bytes(whole[:4000])
-    assert compile_package(pkg) == 1 and cached.read_bytes() == whole
-    proc = subprocess.run([sys.executable, "-v", "-c", "import pkgx.big"], cwd=tmp_path,
-                          capture_output=True, text=True, env=dict(os.environ,
-                                                                   PYTHONDONTWRITEBYTECODE="1"))
-    assert f"code object from '{cached}'" in proc.stderr

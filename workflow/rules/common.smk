@@ -12,7 +12,6 @@ from facemotion.errors import InputError
 from facemotion.io.registry import read_labels
 from facemotion.io.trc import trc_frame_count
 from facemotion.papers.lucero_munhall import TABLE_I
-from facemotion.study.adapter import compile_package
 from facemotion.study.invocation import (
     ParseGuard,
     invocation_dir,
