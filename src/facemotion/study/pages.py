@@ -373,11 +373,17 @@ def _lm_stability(src: Sources) -> str:
 @block(LM_PAGE, "lm-comparison", ["paper"], "results/paper/tables/paper_comparison.tsv "
        "(facemotion.papers.comparison.to_markdown, Lucero & Munhall's rows)")
 def _lm_comparison(src: Sources) -> str:
-    from facemotion.papers.comparison import to_markdown
     from facemotion.papers.table import LM
 
+    return _comparison_rows(src, LM)
+
+
+def _comparison_rows(src: Sources, paper: str) -> str:
+    """One paper's rows of the default study's comparison table, as markdown."""
+    from facemotion.papers.comparison import to_markdown
+
     table = _tsv(src.root("paper") / "tables" / "paper_comparison.tsv")
-    return to_markdown(table[table["paper"] == LM]).rstrip("\n")
+    return to_markdown(table[table["paper"] == paper]).rstrip("\n")
 
 
 # docs/basu-pentland.md ------------------------------------------------------------------------
@@ -487,11 +493,9 @@ def _bp_heldout(src: Sources) -> str:
 @block(BP_PAGE, "bp-comparison", ["paper"], "results/paper/tables/paper_comparison.tsv "
        "(facemotion.papers.comparison.to_markdown, Basu & Pentland's rows)")
 def _bp_comparison(src: Sources) -> str:
-    from facemotion.papers.comparison import to_markdown
     from facemotion.papers.table import BP
 
-    table = _tsv(src.root("paper") / "tables" / "paper_comparison.tsv")
-    return to_markdown(table[table["paper"] == BP]).rstrip("\n")
+    return _comparison_rows(src, BP)
 
 
 # docs/methods.md ------------------------------------------------------------------------------
