@@ -4,10 +4,12 @@ import numpy as np
 
 from facemotion.ingest.displacement_file import load_displacements
 from facemotion.ingest.displacements import split_roles
+from facemotion.ingest.noise import estimate_noise
 from facemotion.papers.lucero_munhall import EPSILON_MM
 from facemotion.plots.rank import plot_r_values
-from facemotion.ranking.epsilon_rank import epsilon_rank_table
+from facemotion.ranking.epsilon_rank import epsilon_rank_table, noise_epsilon
 from facemotion.ranking.routes import rank_for_study, ranking_summary, route_accuracy
+from facemotion.regions.target import NOISE_LEVEL, headline_facts
 from facemotion.study.adapter import run_step
 from facemotion.study.outputs import figure_files
 from facemotion.study.provenance import save_figure, write_table
@@ -15,7 +17,7 @@ from facemotion.study.provenance import save_figure, write_table
 
 def main(sm, log, prov):
     p = sm.params
-    train, _ = split_roles(load_displacements(sm.input.npz), sm.input.sentences)
+    train, held = split_roles(load_displacements(sm.input.npz), sm.input.sentences)
     ranking = rank_for_study(train.A, train.labels, method=p.method, k_max=p.k_max)
     norm = p.r_normalisation
     table = ranking.to_frame(norm)  # |r_kk| in the three readings of Fig. 2, and the chosen
@@ -28,9 +30,21 @@ def main(sm, log, prov):
         acc = route_accuracy(train.A, ranking)
         summary["residual_ratio_vs_qr"] = ";".join(
             f"k={k}:{r:.4f}" for k, r in zip(acc["k"], acc["ratio"], strict=True))
-    # the setting's tolerances, and the paper's epsilon for the comparison with the paper
-    rank = epsilon_rank_table(ranking, list(p.tolerances_mm), norm, summary,
-                              extra={EPSILON_MM: "L&M Sec. IV (paper comparison)"})
+    # for a lab: how many markers predict the rest within the target, and the data's noise
+    noise = estimate_noise(train)
+    summary.update(headline_facts(ranking, held, target_mm=p.target_mm,
+                                  resamples=p.resamples, level=p.level, k_max=p.k_max))
+    summary.update(noise_mm=noise.noise_mm, noise_source=noise.source)
+    log.info("noise per coordinate: %.3g mm (high-frequency residual %.3g mm over %d frames, "
+             "head-fit residual %.3g mm); k for %g mm held-out error: %s", noise.noise_mm,
+             noise.high_frequency_mm, noise.window_frames, noise.head_fit_mm, p.target_mm,
+             summary["k_for_target"])
+    # the setting's tolerances, the paper's epsilon for the comparison with the paper, and the
+    # tolerance at the data's own noise level
+    extra = {EPSILON_MM: "L&M Sec. IV (paper comparison)"}
+    if np.isfinite(noise.noise_mm) and noise.noise_mm > 0:
+        extra[noise_epsilon(noise.noise_mm, ranking.rows, ranking.n, norm)] = NOISE_LEVEL
+    rank = epsilon_rank_table(ranking, list(p.tolerances_mm), norm, summary, extra=extra)
     write_table(rank, sm.output.rank, "rank", prov)
     log.info("R normalisation %r; epsilon-rank (smallest k with ||R22||_2 <= epsilon) and the "
              "diagonal count: %s", norm,

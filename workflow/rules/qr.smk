@@ -33,6 +33,9 @@ rule rank_markers:
         route_check=config["qr"]["route_check"],
         tolerances_mm=config["qr"]["tolerances_mm"],
         r_normalisation=config["qr"]["r_normalisation"],
+        target_mm=config["eval"]["target_error_mm"],
+        resamples=config["eval"]["interval_resamples"],
+        level=config["eval"]["interval_level"],
     message:
         "rank_markers {wildcards.dataset}: QR with column pivoting, epsilon-rank (L&M Fig. 2)"
     script:

@@ -59,6 +59,17 @@ def paper_epsilon_rank(ranking: MarkerRanking, epsilon: float,
     return lo, norm_hi
 
 
+def noise_epsilon(sigma_mm: float, rows: int, n: int,
+                  normalisation: str = DEFAULT_R_NORMALISATION) -> float:
+    """The tolerance at the measurement noise: the expected 2-norm of a rows x n matrix of white
+    noise with ``sigma_mm`` per coordinate, sigma (sqrt(rows) + sqrt(n)) (the largest singular
+    value of a Gaussian matrix, Gordon's bound), in ``normalisation``'s units.  A remainder
+    R22 below it is no larger than the noise alone would be."""
+    if not (np.isfinite(sigma_mm) and sigma_mm > 0):
+        raise InputError(f"noise level: must be a positive number of mm, got {sigma_mm!r}")
+    return float(sigma_mm) * (np.sqrt(rows) + np.sqrt(n)) / r_scale(rows, normalisation)
+
+
 RANK_COLUMNS = ["tolerance_mm", "r_normalisation", "epsilon_rank", "r22_norm_at_rank_mm",
                 "diagonal_count", "redundant_markers"]
 

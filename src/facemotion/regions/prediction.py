@@ -178,19 +178,16 @@ def _k_stop(rk: MarkerRanking, k_max) -> int:
     return stop
 
 
-def error_curve(train_ranking: MarkerRanking, B, labels: Sequence[str],
-                k_max: int | None = None) -> pd.DataFrame:
-    """Held-out prediction error for every k = 1..min(rank, k_max) (and k = n, zero error).
-
-    k stops at the numerical rank of the training data (R11 must be invertible) and at
-    ``k_max`` (cost O(rows n k_max)); k = n is always reported (every marker main: zero
-    error).  Columns: see the module docstring.
-    """
+def residual_steps(train_ranking: MarkerRanking, B, labels: Sequence[str],
+                   k_max: int | None = None):
+    """Yield (k, E_s, mag) for k = 1..min(rank, k_max): E_s (n - k, 3, F) the held-out residuals
+    of the secondary markers in pivot order (a view, overwritten by the next step) and mag
+    (n - k,) each one's summed 3-D displacement magnitude.  The rank-one updates of the module
+    notes: E^(k) = E^(k-1) - C[:, k-1] R[k-1, :], C[:, :k] = B_P[:, :k] R11^-1."""
     rk = train_ranking
     Bp = _align(rk, B, labels)
     F = Bp.shape[0] // 3
     n = rk.n
-    lab = rk.labels_in_order
     rank = _k_stop(rk, k_max)
     R = rk.R
     # C[:, :rank] = B_P[:, :rank] R11^-1   (solve R11^T C^T = B_P^T)
@@ -201,14 +198,27 @@ def error_curve(train_ranking: MarkerRanking, B, labels: Sequence[str],
     Cm = np.ascontiguousarray(C.reshape(F, 3, rank).transpose(2, 1, 0))
     mag = np.sqrt(_sq_dist(E)).sum(axis=1)
     step = np.empty_like(E)
-    out = []
     for k in range(1, rank + 1):
         # E^(k) = E^(k-1) - C[:, k-1] R[k-1, :]   (rank-one update, secondary columns only)
         Es = E[k:]
         np.subtract(Es, np.multiply(R[k - 1, k:, None, None], Cm[k - 1], out=step[k:]),
                     out=Es)
-        out.append(_stats(_sq_dist(Es), mag[k:], k, ",".join(lab[:k])))
-    out.append(_zero_row(n, lab))
+        yield k, Es, mag[k:]
+
+
+def error_curve(train_ranking: MarkerRanking, B, labels: Sequence[str],
+                k_max: int | None = None) -> pd.DataFrame:
+    """Held-out prediction error for every k = 1..min(rank, k_max) (and k = n, zero error).
+
+    k stops at the numerical rank of the training data (R11 must be invertible) and at
+    ``k_max`` (cost O(rows n k_max)); k = n is always reported (every marker main: zero
+    error).  Columns: see the module docstring.
+    """
+    rk = train_ranking
+    lab = rk.labels_in_order
+    out = [_stats(_sq_dist(Es), mag, k, ",".join(lab[:k]))
+           for k, Es, mag in residual_steps(rk, B, labels, k_max)]
+    out.append(_zero_row(rk.n, lab))
     return pd.DataFrame(out, columns=CURVE_COLUMNS)
 
 

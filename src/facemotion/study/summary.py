@@ -39,22 +39,69 @@ def _fmt(x: float) -> str:
     return f"{x:.3g}"
 
 
-def rank_lines(rank_summary, selected, n_pivots: int = 5) -> list[str]:
-    """Per dataset: the epsilon-rank at every tolerance and the first pivots (Table I)."""
-    from facemotion.ranking.result import ASKED
+#: How to read the two columns beyond the papers (docs/results.md says more).
+READING = [
+    "  at noise: the epsilon-rank at the tolerance that white noise of the data's own estimated",
+    "    level (mm per coordinate, in brackets) would reach; markers past it move no more than",
+    "    measurement error.  k for N mm: the fewest main markers whose prediction of the rest",
+    "    is within N mm on average on held-out sentences (bootstrap interval over them).",
+]
 
+
+def _k_cell(r) -> str:
+    """k for the target with its interval, from one rank.tsv row ('-' without held-out
+    sentences)."""
+    if int(r.get("heldout_sentences", 0) or 0) == 0:
+        return "- (no held-out)"
+    k = r.get("k_for_target")
+    if k is None or k != k:
+        return "not reached"
+    lo, hi = r.get("k_for_target_low"), r.get("k_for_target_high")
+    if lo is None or lo != lo:
+        return f"{int(k)} (no interval)"
+    hi = "more" if hi is None or hi != hi else str(int(hi))
+    return f"{int(k)} ({int(lo)}-{hi})"
+
+
+def rank_lines(rank_summary, selected, n_pivots: int = 5) -> list[str]:
+    """Per dataset: the epsilon-rank at every tolerance, at the data's noise level, k for the
+    target held-out error with its interval, and the first pivots (Table I)."""
+    from facemotion.ranking.result import ASKED
+    from facemotion.regions.target import NOISE_LEVEL
+
+    noise = rank_summary[rank_summary.get("tolerance_from", ASKED) == NOISE_LEVEL] \
+        if "tolerance_from" in rank_summary else rank_summary.iloc[:0]
     if "tolerance_from" in rank_summary:  # not the paper's epsilon added for the comparison
         rank_summary = rank_summary[rank_summary["tolerance_from"] == ASKED]
     tols = sorted(rank_summary["tolerance_mm"].unique())
     head = "epsilon-rank at " + " / ".join(_fmt(t) for t in tols) + " mm"
+    has_target = "k_for_target" in rank_summary
+    target = (f"k for {_fmt(rank_summary['target_error_mm'].iloc[0])} mm "
+              f"({rank_summary['interval_level'].iloc[0]:.0%})" if has_target else "")
     names = list(dict.fromkeys(rank_summary["dataset"]))
     width = max(len("dataset"), *(len(str(n)) for n in names))
-    out = [f"  {'dataset':<{width}}  {head}  first {n_pivots} pivots"]
+    cols = [head, "at noise (mm)"] + ([target] if has_target else [])
+    table = []
     for name in names:
-        r = rank_summary[rank_summary["dataset"] == name].set_index("tolerance_mm")
-        ranks = " / ".join(str(int(r.loc[t, "epsilon_rank"])) for t in tols)
+        rows = rank_summary[rank_summary["dataset"] == name]
+        r = rows.set_index("tolerance_mm")
+        cells = [" / ".join(str(int(r.loc[t, "epsilon_rank"])) for t in tols)]
+        nz = noise[noise["dataset"] == name]
+        cells.append(f"{int(nz['epsilon_rank'].iloc[0])} of {int(nz['markers'].iloc[0])} "
+                     f"({_fmt(nz['noise_mm'].iloc[0])})" if len(nz) else "-")
+        if has_target:
+            cells.append(_k_cell(rows.iloc[0].to_dict()))
         pivots = " ".join(str(m) for m in list(selected[name])[:n_pivots] if str(m))
-        out.append(f"  {name:<{width}}  {ranks:<{len(head)}}  {pivots}")
+        table.append((name, cells, pivots))
+    widths = [max(len(h), *(len(c[i]) for _, c, _ in table)) for i, h in enumerate(cols)]
+
+    def line(name, cells, last):
+        return (f"  {name:<{width}}  "
+                + "  ".join(f"{c:<{w}}" for c, w in zip(cells, widths, strict=True))
+                + f"  {last}")
+
+    out = [line("dataset", cols, f"first {n_pivots} pivots")]
+    out += [line(name, cells, pivots) for name, cells, pivots in table]
     return out
 
 
@@ -87,7 +134,7 @@ def study_summary(study: str, root: str, rank_summary=None, selected=None,
     lines = [f"facemotion study '{study}': every output is under {root}/"]
     if rank_summary is not None and selected is not None and len(rank_summary):
         lines += ["Lucero & Munhall 2008 (tables/rank_summary.tsv, tables/selected_markers.tsv):",
-                  *rank_lines(rank_summary, selected)]
+                  *rank_lines(rank_summary, selected), *READING]
     lip = lip_lines(lips or {})
     if lip:
         lines += ["Basu & Pentland 1997 Table 1, MSE per degree of freedom in model units^2 "
