@@ -6,7 +6,7 @@ DOF counts.
 
 from __future__ import annotations
 
-from facemotion.papers.table import BP, RULE_1_5_10, RULE_EXACT, Inputs, Rows, factor_verdict
+from facemotion.papers.table import BP, Band, Check, Equal, Factor, Inputs, Rows
 
 # B&P Table 1: reconstruction error per DOF in the model's normalised units
 BP_TABLE_1 = {("xyz_8_points", "10_modes"): 1.10e-3, ("xyz_8_points", "full_covariance"): 7.80e-4,
@@ -27,11 +27,9 @@ def statements(R: Rows, inp: Inputs) -> None:
     cells = table_1_cells(rec)
     for (view, cov), pv in BP_TABLE_1.items():
         our = cells.get((view, cov))
-        R.add(BP, "Table 1", f"{BP_VIEW[view]}, {cov.replace('_', ' ')}", pv, our,
-              f"MSE per DOF, paper's model units^2, 10 test frames, tracked points, sigma^2 = 0 "
-              f"({ls} talker)", out_rec,
-              "not measured" if our is None else factor_verdict(our, pv, 1.5, 10.0),
-              RULE_1_5_10, False)
+        R.add(BP, "Table 1", f"{BP_VIEW[view]}, {cov.replace('_', ' ')}", "prediction", pv,
+              our, f"MSE per DOF, paper's model units^2, 10 test frames, tracked points, "
+              f"sigma^2 = 0 ({ls} talker)", out_rec, Factor(pv, 1.5, 3.0))
     table_1_ratios(R, cells, out_rec)
     view_orderings(R, cells, out_rec)
     mesh_counts(R, counts, ls, out_cnt)
@@ -48,12 +46,10 @@ def _count(counts, quantity: str) -> float | None:
 
 def variance_in_modes(R: Rows, q: float | None, ls: str, out_cnt: str) -> None:
     """99.2 % of the variance in the first 10 modes (Sec. 5)."""
-    v = ("not measured" if q is None else "reproduced" if abs(q - 99.2) <= 0.5
-         else "same shape" if q >= 95 else "differs")
-    R.add(BP, "Sec. 5", "the first 10 modes cover 99.2 % of the variance", 99.2, q,
-          f"variance of the fitted deformations in the first 10 PCA modes, % ({ls} talker)",
-          out_cnt, v, "reproduced: within 0.5 percentage points; same shape: >= 95 %; differs: "
-          "otherwise", False)
+    R.add(BP, "Sec. 5", "the first 10 modes cover 99.2 % of the variance", "prediction", 99.2,
+          q, f"variance of the fitted deformations in the first 10 PCA modes, % ({ls} talker)",
+          out_cnt, Band(99.2, 0.5, 2.0, unit="percentage points",
+                        precision="the paper prints one decimal"))
 
 
 def table_1_cells(rec) -> dict[tuple[str, str], float]:
@@ -88,15 +84,8 @@ def table_1_ratios(R: Rows, cells: dict, out_rec: str) -> None:
     for st, a, b in RATIOS:
         pv = BP_TABLE_1[a] / BP_TABLE_1[b]
         our = cells[a] / cells[b] if a in cells and b in cells and cells[b] > 0 else None
-        if our is None:
-            v = "not measured"
-        else:
-            v = factor_verdict(our, pv, 1.5, 1e9)
-            if v == "same shape" and (our > 1) != (pv > 1):
-                v = "differs"
-        R.add(BP, "Table 1", f"ratio {st}", pv, our, "ratio of two Table 1 cells (scale-free)",
-              out_rec, v, "reproduced: within 1.5x; same shape: on the same side of 1; differs: "
-              "otherwise", False)
+        R.add(BP, "Table 1", f"ratio {st}", "prediction", pv, our,
+              "ratio of two Table 1 cells (scale-free)", out_rec, Factor(pv, 1.5, 3.0))
 
 
 def _view_order(keys, error) -> str:
@@ -112,10 +101,10 @@ def view_orderings(R: Rows, cells: dict, out_rec: str) -> None:
         if all(k_ in cells for k_ in keys):
             our = _view_order(keys, lambda k_: cells[k_])
         pv = _view_order(keys, lambda k_: BP_TABLE_1[k_])
-        R.add(BP, "Table 1, Sec. 5", f"view ordering, {cov.replace('_', ' ')}", pv, our,
-              "views sorted by their error (best first)", out_rec,
-              "not measured" if our is None else "reproduced" if our == pv else "differs",
-              RULE_EXACT, False)
+        R.add(BP, "Table 1, Sec. 5", f"view ordering, {cov.replace('_', ' ')}", "prediction",
+              pv, our, "views sorted by their error (best first); the ordering depends on the "
+              "model's units (it flips when the model is kept in mm)", out_rec,
+              Equal(pv, other=" < ".join(reversed(pv.split(" < ")))))
 
 
 def mesh_counts(R: Rows, counts, ls: str, out_cnt: str) -> None:
@@ -128,16 +117,17 @@ def mesh_counts(R: Rows, counts, ls: str, out_cnt: str) -> None:
     for q_, st, pv, where in wanted:
         value = _count(counts, q_)
         our = None if value is None else int(round(value))
-        R.add(BP, where, st, pv, our, f"count on the {ls} talker's mesh", out_cnt,
-              "not measured" if our is None else "reproduced" if our == pv else "differs",
-              RULE_EXACT, True)
+        R.add(BP, where, st, "by construction", pv, our,
+              f"count on the {ls} talker's mesh (built to the paper's counts)", out_cnt,
+              Equal(pv))
 
 
 def depth_variation(R: Rows, ds: float | None, out_cnt: str) -> None:
     """Significant depth variation in the test frames (Sec. 5)."""
-    R.add(BP, "Sec. 5", "significant depth variation in the test frames",
+    R.add(BP, "Sec. 5", "significant depth variation in the test frames", "calibration",
           "significant", ds, "share of the depth (z) axis in the tracked points' displacement "
           "variance over the test frames", out_cnt,
-          "not measured" if ds is None else "reproduced" if ds >= 1 / 3 else "differs",
-          "reproduced: >= 1/3 (at least an average axis; the lip talker's calibration target); "
-          "differs: otherwise", True)
+          Check("reproduced: between 1/3 (at least an average axis; the lip talker's "
+                "calibration target) and 2/3 (not the only axis that moves); differs: "
+                "otherwise", lambda v: "reproduced" if 1 / 3 <= v <= 2 / 3 else "differs",
+                rejects=(0.1, 0.9)))

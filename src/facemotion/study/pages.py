@@ -230,11 +230,12 @@ def _readme_summary(src: Sources) -> str:
     out = [_table(["dataset", f"epsilon-rank (ε = {EPSILON_MM:g} mm)", "first 5 pivots",
                    "held-out error, k = 10"], rows, "lrll")]
     table = _tsv(src.root("paper") / "tables" / "paper_comparison.tsv")
-    counts = summary_counts(table[table["calibration"] != "yes"])
-    crow = [[r["paper"], r["part"]] + [str(int(r[v])) for v in VERDICTS]
+    counts = summary_counts(table)
+    crow = [[r["paper"], r["class"], r["part"]] + [str(int(r[v])) for v in VERDICTS]
             for _, r in counts.iterrows()]
-    out += ["", "The papers' quantitative statements that were not calibration targets, by "
-            "verdict:", "", _table(["paper", "statements", *VERDICTS], crow, "llrrrr")]
+    out += ["", "The papers' quantitative statements by class (predictions first: only they "
+            "test the study) and verdict:", "",
+            _table(["paper", "class", "statements", *VERDICTS], crow, "lllrrrr")]
     return "\n".join(out)
 
 
@@ -543,16 +544,18 @@ def _calibration(src: Sources) -> str:
 
 
 @block(METHODS_PAGE, "calibration-rows", ["paper"], "results/paper/tables/paper_comparison.tsv "
-       "(rows with calibration = yes)")
+       "(rows of class calibration)")
 def _calibration_rows(src: Sources) -> str:
     table = _tsv(src.root("paper") / "tables" / "paper_comparison.tsv")
-    cal = table[table["calibration"] == "yes"]
+    cal = table[table["class"] == "calibration"]
     rows = [[r["row"], "L&M" if r["paper"].startswith("Lucero") else "B&P", r["where"],
              r["statement"], r["paper_value"], r["our_value"], r["verdict"]]
             for _, r in cal.iterrows()]
-    n_pred = len(table) - len(cal)
+    n_pred = int((table["class"] == "prediction").sum())
+    n_cons = int((table["class"] == "by construction").sum())
     return (_table(["#", "paper", "where", "statement", "paper", "ours", "verdict"], rows)
-            + f"\n\nThe other {n_pred} rows of the comparison table are predictions.")
+            + f"\n\nOf the other rows of the comparison table, {n_pred} are predictions and "
+            f"{n_cons} follow by construction (arithmetic, a theorem, or the design).")
 
 
 # docs/your-data.md ----------------------------------------------------------------------------

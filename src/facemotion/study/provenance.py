@@ -67,8 +67,8 @@ TABLE_SCHEMAS: dict[str, tuple[str, tuple[str, ...]]] = {
     "lip_model_counts": ("1", ("lip_subject", "quantity", "paper_value", "our_value", "unit",
                                "paper_place")),
     "summary": ("1", ()),
-    "paper_comparison": ("1", ("row", "paper", "where", "statement", "paper_value", "our_value",
-                               "measure", "output", "verdict", "rule", "calibration")),
+    "paper_comparison": ("2", ("row", "paper", "where", "statement", "class", "paper_value",
+                               "our_value", "measure", "output", "verdict", "rule")),
     "manifest": ("1", ("path", "sha256", "schema_id", "schema_version", "sidecar")),
 }
 
