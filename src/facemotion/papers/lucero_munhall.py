@@ -145,11 +145,14 @@ def table_i_against_chance(R: Rows, inp: Inputs) -> None:
         checks = [
             ("regions", f"{label}: the regions of Table I's 16 pivots, position by position",
              "a marker of the paper's region at each of the 16 positions", 16, 12,
-             (lambda o: sum(region(a) == region(b) for a, b in zip(o, paper16, strict=False)))),
+             (lambda o, p=paper16: sum(region(a) == region(b)
+                                       for a, b in zip(o, p, strict=False)))),
             ("first_6", f"{label}: Table I's first 6 markers, as a set",
-             "markers in both first-6 sets", 6, 5, lambda o: len(set(o[:6]) & set(paper16[:6]))),
+             "markers in both first-6 sets", 6, 5,
+             lambda o, p=paper16: len(set(o[:6]) & set(p[:6]))),
             ("first_16", f"{label}: Table I's first 16 markers, as a set",
-             "markers in both first-16 sets", 16, 12, lambda o: len(set(o[:16]) & set(paper16))),
+             "markers in both first-16 sets", 16, 12,
+             lambda o, p=paper16: len(set(o[:16]) & set(p))),
         ]
         for key, statement, measure, full, near, score in checks:
             rule = _above_chance_rule(key, full, near, base[key])
