@@ -149,7 +149,7 @@ def info(file: str, fmt: str | None, units: str | None, markers: bool) -> None:
 def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, method,
          max_interp_s, long_gaps, neutral, fmt, units) -> None:
     """Rank the markers of one or more takes by QR with column pivoting (Lucero & Munhall
-    2008, Sec. II.C) and give the epsilon-rank (Sec. III).
+    2008, Sec. III) and give the epsilon-rank (Sec. III, eq. 1).
 
     FILES are the takes (sentences) of one talker, stacked into one displacement matrix A as in
     the study (all of them train). Prints the first pivots, the r values in pivot order

@@ -1,8 +1,9 @@
 """Marker selection with forced-in and excluded markers, scikit-learn style.
 
 ``MarkerSelector(k, force=..., exclude=...).fit(A).predict(P1)``: choose k main markers of the
-displacement matrix A by QR with column pivoting (Lucero & Munhall 2008, Sec. II.C), then predict
-every marker from the main markers' displacements P1 by A_s ~= A_m X, X = R11^-1 R12 (Sec. II.D).
+displacement matrix A by QR with column pivoting (Lucero & Munhall 2008, Sec. III), then predict
+every marker from the main markers' displacements P1 by A_s ~= A_m X, X = R11^-1 R12 (Sec. III,
+eqs. 3-4).
 
 Forced and excluded markers (as in PySensors' constrained sensor placement) are a small extension
 of the pivoting: the candidates for each pivot are restricted to a group, and the groups are
