@@ -16,7 +16,10 @@ def main(sm, log, prov):
         selected = pd.read_csv(sm.input.selected, sep="\t", dtype=str, keep_default_na=False)
     lips = {ls: pd.read_csv(path, sep="\t")
             for ls, path in zip(p.lip_subjects, sm.input.lips, strict=True)}
-    text = study_summary(p.study, p.root, rank, selected, lips, skipped=p.skipped)
+    comparison = (pd.read_csv(sm.input.comparison, sep="\t", dtype=str, keep_default_na=False)
+                  if "comparison" in sm.input.keys() else None)
+    text = study_summary(p.study, p.root, rank, selected, lips, skipped=p.skipped,
+                         comparison=comparison)
     write_artifact(sm.output.summary, text.encode(), "study_summary", prov)
 
 

@@ -374,11 +374,14 @@ def comparison_inputs(wildcards):
 
 
 def summary_inputs(wildcards):
-    return {
+    inp = {
         "lips": [f"<results>/lips/{ls}/reconstruction.tsv" for ls in LIP_SUBJECTS],
         "rank_summary": "<results>/tables/rank_summary.tsv",
         "selected": "<results>/tables/selected_markers.tsv",
     }
+    if COMPARISON_DATASETS or COMPARISON_LIP_SUBJECT is not None:
+        inp["comparison"] = "<results>/tables/paper_comparison.tsv"
+    return inp
 
 
 def all_outputs():

@@ -128,8 +128,24 @@ def lip_lines(tables: Mapping[str, object]) -> list[str]:
     return out
 
 
+def comparison_lines(table) -> list[str]:
+    """The papers' statements by class and verdict, predictions first (only they test the
+    study)."""
+    from facemotion.papers.table import CLASSES, VERDICTS
+
+    out = ["The papers' statements by class, then verdict (tables/paper_comparison.tsv):"]
+    for cls in CLASSES:
+        rows = table[table["class"] == cls]
+        if len(rows):
+            counts = rows["verdict"].value_counts()
+            out.append(f"  {cls:<16} {len(rows):>3}: " + ", ".join(
+                f"{int(counts.get(v, 0))} {v}" for v in VERDICTS if counts.get(v, 0)))
+    return out
+
+
 def study_summary(study: str, root: str, rank_summary=None, selected=None,
-                  lips: Mapping[str, object] | None = None, skipped: Sequence[str] = ()) -> str:
+                  lips: Mapping[str, object] | None = None, skipped: Sequence[str] = (),
+                  comparison=None) -> str:
     """The closing summary: where the results are and the headline numbers."""
     lines = [f"facemotion study '{study}': every output is under {root}/"]
     if rank_summary is not None and selected is not None and len(rank_summary):
@@ -139,6 +155,8 @@ def study_summary(study: str, root: str, rank_summary=None, selected=None,
     if lip:
         lines += ["Basu & Pentland 1997 Table 1, MSE per degree of freedom in model units^2 "
                   "(lips/<subject>/reconstruction.tsv):", *lip]
+    if comparison is not None and len(comparison):
+        lines += comparison_lines(comparison)
     for s in skipped:
         lines.append(f"Skipped: {s}")
     lines += [f"Every output with its checksum: {root}/manifest.tsv"]
