@@ -55,7 +55,8 @@ def plot_error_curves(df_by_dataset: Mapping[str, pd.DataFrame],
                       n_markers: Mapping[str, int] | None = None) -> Figure:
     """Paper Fig. 10, two panels against k (number of main markers): left (Fig. 10 top) the
     held-out mean absolute 3-D error (mm; optional median / RMS / max 3-D distances as thinner
-    broken lines of the same colour; the table's per-coordinate RMS times sqrt(3)), right (Fig. 10 bottom) the relative error averaged over markers
+    broken lines of the same colour; the table's per-coordinate RMS times sqrt(3)), right
+    (Fig. 10 bottom) the relative error averaged over markers
     (``rel_error_per_marker``, a fraction shown in %; the pooled ratio ``rel_error_pooled``, when
     present, as a thin dotted line). Datasets overlaid.
 
