@@ -259,14 +259,19 @@ def _readme_summary(src: Sources) -> str:
     from facemotion.papers.lucero_munhall import EPSILON_MM
     from facemotion.papers.table import VERDICTS
 
-    rows = []
+    rows, head = [], "k for the target"
     for label, folder, rank, r_values in _study_datasets(src, "paper"):
         curve = _curve_at(folder, [1, 10])
         err = "—" if not curve or 10 not in curve else (
             f"{_num(curve[10]['mean_abs_error_mm'])} mm")
-        rows.append([label, _paper_eps(rank)["epsilon_rank"], _pivots(r_values), err])
+        first = rank.iloc[0]
+        head = (f"k for {float(first['target_error_mm']):g} mm "
+                f"({float(first['interval_level']):.0%} interval)")
+        lo, hi = first["k_for_target_low"], first["k_for_target_high"] or "more"
+        kt = (f"{first['k_for_target']} ({lo}-{hi})" if lo else first["k_for_target"] or "—")
+        rows.append([label, _paper_eps(rank)["epsilon_rank"], _pivots(r_values), err, kt])
     out = [_table(["dataset", f"epsilon-rank (ε = {EPSILON_MM:g} mm)", "first 5 pivots",
-                   "held-out error, k = 10"], rows, "lrll")]
+                   "held-out error, k = 10", head], rows, "lrlll")]
     table = _tsv(src.root("paper") / "tables" / "paper_comparison.tsv")
     counts = summary_counts(table)
     crow = [[r["paper"], r["class"], r["part"]] + [str(int(r[v])) for v in VERDICTS]
