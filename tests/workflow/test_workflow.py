@@ -310,8 +310,12 @@ def test_terminal_output_is_short_and_ends_with_a_summary(smoke_runs):
     assert summary in tail
     # the headline numbers are the tables' own
     ranks = pd.read_csv(a / "results" / "smoke" / "tables" / "rank_summary.tsv", sep="\t")
-    s1 = ranks[ranks["dataset"] == "S1"].sort_values("tolerance_mm")
+    s1 = ranks[(ranks["dataset"] == "S1")
+               & (ranks["tolerance_from"] == "qr.tolerances_mm")].sort_values("tolerance_mm")
     assert " / ".join(str(r) for r in s1["epsilon_rank"]) in summary
+    noise = ranks[(ranks["dataset"] == "S1") & (ranks["tolerance_from"] == "noise_level")]
+    assert f"{noise['epsilon_rank'].iloc[0]} of {noise['markers'].iloc[0]}" in summary
+    assert "k for 1 mm" in summary and "prediction" in summary
     sel = pd.read_csv(a / "results" / "smoke" / "tables" / "selected_markers.tsv", sep="\t",
                       dtype=str)
     assert " ".join(sel["S1"][:5]) in summary
