@@ -93,13 +93,22 @@ def test_virtual_tables(virtual_rigid):
     assert set(map(tuple, rec[["view", "point_set", "covariance", "noise"]].to_numpy())) == {
         (v, p, c, n) for v in VIEWS for p in POINT_SETS for c in ("10_modes", "full_covariance")
         for n in ("noise_free", "regularised")}
-    # the paper's values sit on the paper's definition (tracked points, sigma^2 = 0) only
+    # each row names its estimator reading; the chosen one (noise term, sigma^2 by PPCA) is
+    # the paper's definition on the tracked points, the pseudo-inverse (sigma^2 = 0) beside it
+    assert dict(zip(rec.noise, rec.estimator_reading, strict=True)) == {
+        "noise_free": "pseudo_inverse", "regularised": "noise_term"}
+    assert rec.chosen_reading.eq(rec.estimator_reading == "noise_term").all()
     paper = rec[rec.paper_definition]
-    assert len(paper) == 6 and paper["noise_var_model_units2"].eq(0).all()
-    for _, r in paper.iterrows():
+    assert len(paper) == 6 and paper["noise_var_model_units2"].eq(res.noise_var).all()
+    assert res.noise_var > 0 and paper.chosen_reading.all()
+    # the paper's value sits on the tracked-point rows of both readings, nowhere else
+    tracked = rec[rec.point_set == "tracked_points"]
+    assert len(tracked) == 12
+    for _, r in tracked.iterrows():
         assert r.paper_mse_per_dof_model_units2 == PAPER_TABLE1[r.view][
             r.covariance == "full_covariance"]
-    assert rec.loc[~rec.paper_definition, "paper_mse_per_dof_model_units2"].isna().all()
+    assert rec.loc[rec.point_set != "tracked_points",
+                   "paper_mse_per_dof_model_units2"].isna().all()
     # observed DOF: 24 for 8 points, 32 for two axes of 16 tracked points, 320 of 160 nodes
     n_obs = rec.groupby(["view", "point_set"])["n_observed_dof"].first()
     assert n_obs["xyz_8_points", "tracked_points"] == 24

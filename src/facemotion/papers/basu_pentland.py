@@ -25,11 +25,12 @@ def statements(R: Rows, inp: Inputs) -> None:
     out_rec, out_cnt = f"lip_reconstruction:{ls}", f"lip_counts:{ls}"
     variance_in_modes(R, _count(counts, "variance_in_modes_percent"), ls, out_cnt)
     cells = table_1_cells(rec)
+    reading = chosen_reading(rec)
     for (view, cov), pv in BP_TABLE_1.items():
         our = cells.get((view, cov))
         R.add(BP, "Table 1", f"{BP_VIEW[view]}, {cov.replace('_', ' ')}", pv, our,
-              f"MSE per DOF, paper's model units^2, 10 test frames, tracked points, sigma^2 = 0 "
-              f"({ls} talker)", out_rec,
+              f"MSE per DOF, paper's model units^2, 10 test frames, tracked points, estimator "
+              f"reading: {reading} ({ls} talker)", out_rec,
               "not measured" if our is None else factor_verdict(our, pv, 1.5, 10.0),
               RULE_1_5_10, False)
     table_1_ratios(R, cells, out_rec)
@@ -65,6 +66,19 @@ def table_1_cells(rec) -> dict[tuple[str, str], float]:
             cells[(str(row["view"]), str(row["covariance"]))] = float(
                 row["mse_per_dof_model_units2"])
     return cells
+
+
+READING_NAMES = {"noise_term": "noise term (sigma^2 by probabilistic PCA)",
+                 "pseudo_inverse": "pseudo-inverse (sigma^2 = 0)"}
+
+
+def chosen_reading(rec) -> str:
+    """The estimator reading of the rows with the paper's definition, named."""
+    if rec is None or "estimator_reading" not in rec.columns:
+        return "not stated"
+    sel = rec[rec["paper_definition"].astype(str).str.lower().isin(["true", "1"])]
+    names = sorted(set(sel["estimator_reading"].astype(str)))
+    return ", ".join(READING_NAMES.get(n, n) for n in names) or "not stated"
 
 
 RATIOS = [  # Table 1's ratios and orderings (scale-free): statement, numerator, denominator

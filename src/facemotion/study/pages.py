@@ -426,10 +426,10 @@ VIEWS = ("xyz_8_points", "yz_all_points", "xy_all_points")
 COVARIANCES = ("10_modes", "full_covariance")
 
 
-def _cell(rec: pd.DataFrame, view: str, cov: str, column: str, noise: str = "noise_free",
+def _cell(rec: pd.DataFrame, view: str, cov: str, column: str, reading: str = "noise_term",
           point_set: str = "tracked_points") -> str:
-    sel = rec[(rec["view"] == view) & (rec["covariance"] == cov) & (rec["noise"] == noise)
-              & (rec["point_set"] == point_set)]
+    sel = rec[(rec["view"] == view) & (rec["covariance"] == cov)
+              & (rec["estimator_reading"] == reading) & (rec["point_set"] == point_set)]
     return _num(sel[column].iloc[0]) if len(sel) else "—"
 
 
@@ -463,10 +463,11 @@ def _bp_table_1_more(src: Sources) -> str:
         for view in VIEWS:
             rows.append([s, BP_VIEW[view]]
                         + [_cell(rec, view, c, "mse_per_dof_mm2") for c in COVARIANCES]
-                        + [_cell(rec, view, c, "mse_per_dof_model_units2", "regularised")
+                        + [_cell(rec, view, c, "mse_per_dof_model_units2", "pseudo_inverse")
                            for c in COVARIANCES])
     return _table(["lip subject", "view", "mm², 10 modes", "mm², full cov.",
-                   "regularised σ², 10 modes", "regularised σ², full cov."], rows, "llrrrr")
+                   "pseudo-inverse (σ² = 0), 10 modes", "pseudo-inverse (σ² = 0), full cov."],
+                  rows, "llrrrr")
 
 
 @block(BP_PAGE, "bp-heldout-points", ["paper"],
