@@ -40,9 +40,9 @@ def paper_like_inputs(n_markers=57):
     rec = pd.DataFrame([{"view": v, "covariance": c, "paper_definition": True,
                          "mse_per_dof_model_units2": x} for (v, c), x in BP_TABLE_1.items()])
     counts = pd.DataFrame({"quantity": ["variance_in_modes_percent", "triangles", "nodes",
-                                        "dof", "constrained_dof", "free_dof",
+                                        "dof", "constrained_dof", "free_dof", "open_dof",
                                         "depth_share_test_frames"],
-                           "our_value": [99.2, 336, 204, 612, 48, 600, 0.4]})
+                           "our_value": [99.2, 336, 204, 612, 48, 600, 564, 0.4]})
     return Inputs(selected=sel, rank_summary=rank, r_values=r_values, stability=stab,
                   curves={"S1": curve}, trajectory={"S1": traj},
                   coefficients_k10={"S1": coef}, lip_reconstruction=rec, lip_counts=counts)
