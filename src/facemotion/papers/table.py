@@ -76,6 +76,7 @@ class Inputs:
     coefficients_k10: Mapping[str, pd.DataFrame] | None = None  # label -> fit/coefficients_k10
     lip_reconstruction: pd.DataFrame | None = None    # lips/{subject}/reconstruction.tsv
     lip_counts: pd.DataFrame | None = None            # lips/{subject}/model_counts.tsv
+    lip_seeds: pd.DataFrame | None = None             # lips/table1_seeds.tsv
     paths: Mapping[str, str] | None = None            # what -> output path (for the table)
     lip_subject: str = "virtual"
 
