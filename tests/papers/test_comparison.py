@@ -41,12 +41,26 @@ def paper_like_inputs(n_markers=57):
     rec = pd.DataFrame([{"view": v, "covariance": c, "paper_definition": True,
                          "mse_per_dof_model_units2": x} for (v, c), x in BP_TABLE_1.items()])
     counts = pd.DataFrame({"quantity": ["variance_in_modes_percent", "triangles", "nodes",
-                                        "dof", "constrained_dof", "free_dof",
+                                        "dof", "constrained_dof", "free_dof", "open_dof",
                                         "depth_share_test_frames"],
-                           "our_value": [99.2, 336, 204, 612, 48, 600, 0.4]})
+                           "our_value": [99.2, 336, 204, 612, 48, 600, 564, 0.4]})
     return Inputs(selected=sel, rank_summary=rank, r_values=r_values, stability=stab,
                   curves={"S1": curve}, trajectory={"S1": traj},
-                  coefficients_k10={"S1": coef}, lip_reconstruction=rec, lip_counts=counts)
+                  coefficients_k10={"S1": coef}, lip_reconstruction=rec, lip_counts=counts,
+                  lip_seeds=lip_seeds_like_the_paper())
+
+
+def lip_seeds_like_the_paper(n_seeds=5):
+    """Per-seed Table 1 directions as the paper's, under both readings."""
+    rows = []
+    for seed in range(n_seeds):
+        for chosen, reading in ((True, "noise_term"), (False, "pseudo_inverse")):
+            for view in ("xyz_8_points", "yz_all_points", "xy_all_points"):
+                p10, pfull = BP_TABLE_1[view, "10_modes"], BP_TABLE_1[view, "full_covariance"]
+                rows.append({"lip_subject": "virtual", "seed": seed, "view": view,
+                             "estimator_reading": reading, "chosen_reading": chosen,
+                             "full_over_modes": pfull / p10, "modes_better": p10 < pfull})
+    return pd.DataFrame(rows)
 
 
 #: The paper disagrees with itself here: its text puts 36 8th in S2a and 10th in S2b, its
@@ -173,6 +187,33 @@ def test_b_and_p_ordering_and_ratios():
     assert t.loc["view ordering, 10 modes", "verdict"] == "differs"
     assert t.loc["ratio xy / yz, 10 modes (frontal against profile)", "verdict"] == "differs"
     assert t.loc["view ordering, full covariance", "verdict"] == "reproduced"
+
+
+FRONTAL = "xy of all points: 10 modes better (0.0075 vs 0.0067), per seed"
+
+
+@pytest.mark.parametrize("agree, verdict", [(5, "reproduced"), (3, "reproduced"),
+                                            (2, "differs"), (0, "differs")])
+def test_b_and_p_frontal_direction_counted_over_seeds(agree, verdict):
+    # the paper's frontal direction (10 modes better) on `agree` of 5 seeds, chosen reading
+    inp = paper_like_inputs()
+    s = inp.lip_seeds
+    flip = (s.view == "xy_all_points") & s.chosen_reading & (s.seed >= agree)
+    s.loc[flip, "modes_better"] = False
+    s.loc[flip, "full_over_modes"] = 0.5
+    t = compare(inp).set_index("statement")
+    row = t.loc[FRONTAL]
+    assert row.verdict == verdict and row.our_value.startswith(f"{agree} of 5 seeds")
+    assert "noise term" in row.measure
+    assert "pseudo-inverse" in t.loc[FRONTAL + ", other reading", "measure"]
+    assert t.loc[FRONTAL + ", other reading", "verdict"] == "reproduced"   # not flipped
+
+
+def test_b_and_p_seed_rows_without_the_seeds_table():
+    inp = paper_like_inputs()
+    inp.lip_seeds = None
+    t = compare(inp).set_index("statement")
+    assert t.loc[FRONTAL, "verdict"] == "not measured"
 
 
 def test_read_inputs_and_markdown(tmp_path, capsys):

@@ -65,8 +65,8 @@ def compare_rows(inp: Inputs) -> Rows:
 
 def read_inputs(paths: Mapping[str, str | None], lip_subject: str = "virtual") -> Inputs:
     """Read the outputs named in ``paths`` (keys: 'selected', 'rank_summary', 'lip_reconstruction',
-    'lip_counts', and 'r_values:LABEL', 'stability:LABEL', 'curve:LABEL', 'trajectory:LABEL',
-    'coefficients:LABEL'); a missing key or file leaves that input empty."""
+    'lip_counts', 'lip_seeds', and 'r_values:LABEL', 'stability:LABEL', 'curve:LABEL',
+    'trajectory:LABEL', 'coefficients:LABEL'); a missing key or file leaves that input empty."""
     def read(p, **kw):
         if not p or not Path(p).is_file():
             return None
@@ -96,6 +96,7 @@ def read_inputs(paths: Mapping[str, str | None], lip_subject: str = "virtual") -
         coefficients_k10=per_label("coefficients", dtype={"main_marker": str}),
         lip_reconstruction=read(paths.get("lip_reconstruction")),
         lip_counts=read(paths.get("lip_counts")),
+        lip_seeds=read(paths.get("lip_seeds")),
         paths={k: str(v) for k, v in paths.items() if v},
         lip_subject=lip_subject)
 

@@ -479,10 +479,10 @@ VIEWS = ("xyz_8_points", "yz_all_points", "xy_all_points")
 COVARIANCES = ("10_modes", "full_covariance")
 
 
-def _cell(rec: pd.DataFrame, view: str, cov: str, column: str, noise: str = "noise_free",
+def _cell(rec: pd.DataFrame, view: str, cov: str, column: str, reading: str = "noise_term",
           point_set: str = "tracked_points") -> str:
-    sel = rec[(rec["view"] == view) & (rec["covariance"] == cov) & (rec["noise"] == noise)
-              & (rec["point_set"] == point_set)]
+    sel = rec[(rec["view"] == view) & (rec["covariance"] == cov)
+              & (rec["estimator_reading"] == reading) & (rec["point_set"] == point_set)]
     return _num(sel[column].iloc[0]) if len(sel) else "—"
 
 
@@ -516,10 +516,33 @@ def _bp_table_1_more(src: Sources) -> str:
         for view in VIEWS:
             rows.append([s, BP_VIEW[view]]
                         + [_cell(rec, view, c, "mse_per_dof_mm2") for c in COVARIANCES]
-                        + [_cell(rec, view, c, "mse_per_dof_model_units2", "regularised")
+                        + [_cell(rec, view, c, "mse_per_dof_model_units2", "pseudo_inverse")
                            for c in COVARIANCES])
     return _table(["lip subject", "view", "mm², 10 modes", "mm², full cov.",
-                   "regularised σ², 10 modes", "regularised σ², full cov."], rows, "llrrrr")
+                   "pseudo-inverse (σ² = 0), 10 modes", "pseudo-inverse (σ² = 0), full cov."],
+                  rows, "llrrrr")
+
+
+@block(BP_PAGE, "bp-table-1-seeds", ["paper"], "results/paper/lips/table1_seeds.tsv")
+def _bp_table_1_seeds(src: Sources) -> str:
+    from facemotion.papers.basu_pentland import BP_TABLE_1, READING_NAMES
+
+    t = _tsv(src.root("paper") / "lips" / "table1_seeds.tsv")
+    ratios = {v: BP_TABLE_1[(v, "full_covariance")] / BP_TABLE_1[(v, "10_modes")]
+              for v in VIEWS}
+    rows = [["paper (Table 1)", "—", "—"] + [_num(ratios[v]) for v in VIEWS]
+            + ["yes" if ratios["xy_all_points"] > 1 else "no"]]
+    for (ls, seed, reading), g in t.groupby(["lip_subject", "seed", "estimator_reading"],
+                                            sort=False):
+        cell = g.set_index("view")
+        name = READING_NAMES.get(reading, reading)
+        if cell["chosen_reading"].iloc[0] == "True":
+            name += " (chosen)"
+        rows.append([ls, seed, name] + [_num(cell.loc[v, "full_over_modes"]) for v in VIEWS]
+                    + ["yes" if cell.loc["xy_all_points", "modes_better"] == "True" else "no"])
+    return _table(["lip subject", "seed", "estimator reading", "xyz of 8 points",
+                   "yz of all points", "xy of all points", "frontal: 10 modes better"],
+                  rows, "lrlrrrl")
 
 
 @block(BP_PAGE, "bp-heldout-points", ["paper"],
@@ -812,6 +835,7 @@ def _outputs_manifest(src: Sources) -> str:
             parts[0] = "{dataset}"
         elif parts[0] == "lips" and len(parts) > 2:
             parts[1] = "{lip_subject}"
+            parts[-1] = re.sub(r"_seed\d+\.", "_seed{seed}.", parts[-1])
         elif parts[0] == "virtual" and len(parts) > 2:
             stem = parts[2].split(".")[0]
             parts[1:] = ["{subject}", re.sub(r"_s\d+$", "_s{nn}", stem)

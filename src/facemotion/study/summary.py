@@ -113,7 +113,10 @@ def lip_lines(tables: Mapping[str, object]) -> list[str]:
         rows = t[(t["paper_definition"].astype(str) == "True")]
         if rows.empty:
             continue
-        out.append(f"  {subject}: view, then 10 modes / full covariance (paper's value)")
+        reading = ", ".join(sorted(set(rows["estimator_reading"].astype(str)))) \
+            if "estimator_reading" in rows.columns else "not stated"
+        out.append(f"  {subject}: view, then 10 modes / full covariance (paper's value); "
+                   f"estimator reading {reading}")
         for view in dict.fromkeys(rows["view"]):
             cells = []
             for cov in ("10_modes", "full_covariance"):
