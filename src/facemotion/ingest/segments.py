@@ -179,20 +179,19 @@ def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
     """A C3D take's EVENT group: labels and times from the take's first sample.
 
     EVENT:TIMES count from frame 1 of the capture (minutes and seconds, added); in a trial
-    that starts later (header first frame f > 1) they are shifted by (f - 1) / rate. Times
-    within ``EVENT_SNAP_FRAMES`` of a sample are snapped to it (they are stored as 32-bit
-    floats). With ``subject_prefix``, events of other subjects (EVENT:SUBJECTS) are ignored.
+    that starts later (header first frame f > 1) they are shifted by (f - 1) / rate. TIMES is
+    a 2 x N array (minutes row, seconds row), or, as some Vicon/BTK files store it, one flat
+    list of 2N values, minutes and seconds interleaved (:func:`event_times`). Times within
+    ``EVENT_SNAP_FRAMES`` of a sample are snapped to it (they are stored as 32-bit floats). An
+    event outside the take (before its first sample or after its end) is an error naming it.
+    With ``subject_prefix``, events of other subjects (EVENT:SUBJECTS) are ignored.
     """
-    import ezc3d
+    from facemotion.io.c3d import open_c3d
 
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: file not found")
-    try:
-        c = ezc3d.c3d(str(p))
-    except Exception as e:
-        raise InputError(f"{p}: cannot read as C3D ({type(e).__name__}: "
-                         f"{str(e).splitlines()[0] if str(e) else 'no detail'})") from None
+    c = open_c3d(p)
     point = c["parameters"]["POINT"]
     rate_v = np.ravel(point["RATE"]["value"]) if "RATE" in point else np.array([])
     rate = float(rate_v[0]) if rate_v.size else float(c["header"]["points"]["frame_rate"])
@@ -204,20 +203,42 @@ def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
     used = int(np.ravel(group["USED"]["value"])[0]) if "USED" in group else 0
     if used == 0:
         raise InputError(f"{p}: no events (the C3D EVENT group is missing or empty)")
-    labels = [str(x).strip() for x in group["LABELS"]["value"]][:used]
-    times = np.asarray(group["TIMES"]["value"], dtype=float).reshape(2, -1)[:, :used]
+    labels = [str(x).strip() for x in group["LABELS"]["value"]] if "LABELS" in group else []
+    if len(labels) < used:
+        raise InputError(f"{p}: EVENT:USED is {used} but EVENT:LABELS names {len(labels)}")
+    minutes, seconds = event_times(group["TIMES"]["value"] if "TIMES" in group else [],
+                                   used, str(p))
     subjects = ([str(x).strip() for x in group["SUBJECTS"]["value"]][:used]
                 if "SUBJECTS" in group else [""] * used)
+    duration = n_frames / rate
     events = []
-    for lab, minutes, seconds, subj in zip(labels, times[0], times[1], subjects, strict=False):
+    for k, (lab, m, sec, subj) in enumerate(zip(labels[:used], minutes, seconds, subjects,
+                                                strict=False)):
         if subject_prefix and subj and subj != subject_prefix:
             continue
-        t = float(minutes) * 60.0 + float(seconds) - first / rate
-        k = round(t * rate)
-        if abs(t * rate - k) <= EVENT_SNAP_FRAMES:
-            t = k / rate
+        t = float(m) * 60.0 + float(sec) - first / rate
+        i = round(t * rate)
+        if abs(t * rate - i) <= EVENT_SNAP_FRAMES:
+            t = i / rate
+        if not (math.isfinite(t) and 0 <= t <= duration):
+            raise InputError(f"{p}: event {k + 1} {token(lab)} at {t:.4g} s is outside the take "
+                             f"(0-{duration:.4g} s: {n_frames} frames at {rate:g} Hz from "
+                             f"capture frame {first + 1})")
         events.append((lab, t))
     return TakeEvents(events, rate, n_frames)
+
+
+def event_times(value, used: int, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """EVENT:TIMES as (minutes, seconds) of the first ``used`` events, from either layout:
+    a 2 x N array, or a flat list of 2N values with minutes and seconds interleaved."""
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 2 and arr.shape[0] == 2 and arr.shape[1] >= used:
+        return arr[0, :used], arr[1, :used]
+    if arr.ndim == 1 and arr.size >= 2 * used and arr.size % 2 == 0:
+        pairs = arr.reshape(-1, 2)  # (minutes, seconds) per event
+        return pairs[:used, 0], pairs[:used, 1]
+    raise InputError(f"{where}: EVENT:TIMES has shape {arr.shape}, not 2 x N or 2N values "
+                     f"for the {used} events of EVENT:USED")
 
 
 def pair_events(events: list[tuple[str, float]], start_label: str, end_label: str,
