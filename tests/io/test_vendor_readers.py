@@ -81,7 +81,8 @@ def test_qtm_zero_samples_are_missing_and_units_are_mm(tmp_path):
     ({"NO_OF_MARKERS": "5"}, "NO_OF_MARKERS is 5 but MARKER_NAMES lists 4 names"),
     ({"NO_OF_FRAMES": "41"}, "NO_OF_FRAMES is 41 but there are 40 data lines"),
     ({"FREQUENCY": "EXT"}, "FREQUENCY 'EXT' is not a number"),
-    ({"DATA_INCLUDED": "2D"}, "holds 2D data; export 3D trajectories"),
+    ({"DATA_INCLUDED": "2D"}, "holds '2D' data, no 3D markers; export 3D trajectories"),
+    ({"DATA_INCLUDED": "6D"}, "a QTM 6D export .rigid bodies., no markers"),
     ({"FREQUENCY": None}, "QTM TSV header has no FREQUENCY value"),
 ])
 def test_qtm_header_errors(tmp_path, overrides, match):
@@ -103,7 +104,7 @@ def test_qtm_data_errors(tmp_path):
     fields = lines[20].split("\t")
     fields[5] = "12.3x"
     lines[20] = "\t".join(fields)
-    (tmp_path / "t.tsv").write_text("\n".join(lines))
+    (tmp_path / "t.tsv").write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"t.tsv, line 21: non-numeric value '12.3x' in field 6"):
         read_qualisys_tsv(tmp_path / "t.tsv")
     (tmp_path / "x.tsv").write_text("Frame\tTime\n1\t0\n")
@@ -112,7 +113,7 @@ def test_qtm_data_errors(tmp_path):
     write_qtm(tmp_path / "w.tsv", labels, pts, column_header=False)
     lines = (tmp_path / "w.tsv").read_text().splitlines()
     lines[-40] = "\t".join(lines[-40].split("\t")[:-1])
-    (tmp_path / "w.tsv").write_text("\n".join(lines))
+    (tmp_path / "w.tsv").write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"13 fields, expected 12 .* or 14 \(with frame"):
         read_qualisys_tsv(tmp_path / "w.tsv")
 
