@@ -102,8 +102,8 @@ def info(file: str, fmt: str | None, units: str | None, subject_prefix: str | No
          rate: float | None, markers: bool) -> None:
     """What a recording holds: markers, frame rate, units, frames and gaps (missing samples).
 
-    FILE is one take in any format of --format. Coordinates are converted to mm on reading; the units
-    line says what the file declared.
+    FILE is one take in any format of --format. Coordinates are converted to mm on reading;
+    the units line says what the file declared.
     """
     from facemotion.ingest.gaps import gap_report
     from facemotion.io.registry import read_recording

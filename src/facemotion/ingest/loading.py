@@ -365,7 +365,8 @@ def load(paths, *, heldout=(), fmt: str | None = None, head_markers=(), exclude_
     head_markers: >= 3 markers that move with the head only (removed as rigid motion).
     exclude_markers / include_markers: markers left out of / kept in the analysis.
     options: the other settings of :func:`load_dataset` (``units``, ``subject_prefix``,
-        ``rate``, ``max_interp_s``, ``long_gaps``, ``neutral``), with its defaults (those of the workflow's config).
+        ``rate``, ``max_interp_s``, ``long_gaps``, ``neutral``), with its defaults (those of
+        the workflow's config).
     """
     from facemotion.io.registry import infer_format
 
