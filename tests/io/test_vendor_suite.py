@@ -275,3 +275,153 @@ def test_rank_reads_vendor_files_without_a_format(capsys):
 def test_rank_checks_the_tolerance_before_printing(capsys):
     code, out, err = cli(capsys, "rank", suite(MOTIVE_121), "--tolerance", "-1")
     assert code == 2 and out == "" and "-1 is not a positive tolerance" in err
+
+
+# ----------------------------------------------------------------------------- broken variants
+
+def data_lines(name):
+    """The file's lines (with their ends) and the indexes of its data lines."""
+    lines = suite(name).read_text().splitlines(keepends=True)
+    if name == OPENFACE:
+        first = 1
+    elif name == MOTIVE_121:
+        first = 7
+    else:
+        first = next(i for i, line in enumerate(lines) if line[:1].isdigit())
+    return lines, list(range(first, len(lines)))
+
+
+def with_time(line, sep, value):
+    cells = line.rstrip("\r\n").split(sep)
+    cells[1] = value
+    return sep.join(cells) + line[len(line.rstrip("\r\n")):]
+
+
+def variant(name, kind):
+    """A broken copy of a real file: (text, the 1-based line the error must name)."""
+    lines, data = data_lines(name)
+    sep = "\t" if name.endswith(".tsv") else ","
+    k = data[len(data) // 2]
+    if kind == "cut":  # the last line cut in the middle of its fields
+        last = lines[data[-1]].rstrip("\r\n")
+        lines[data[-1]] = last[:len(last) // 2]
+        at = data[-1] + 1
+    elif kind == "short":  # one field missing in the middle of a line
+        cells = lines[k].split(sep)
+        del cells[len(cells) // 2]
+        lines[k] = sep.join(cells)
+        at = k + 1
+    elif kind == "removed":
+        del lines[k]
+        at = k + 1
+    elif kind == "repeated":
+        lines.insert(k, lines[k])
+        at = k + 2
+    elif kind == "swapped":
+        lines[k], lines[k + 1] = lines[k + 1], lines[k]
+        at = k + 1
+    elif kind == "jumping":  # the frame column jumps by 5 from one line on
+        for i in data[data.index(k):]:
+            cells = lines[i].split(sep)
+            cells[0] = str(int(cells[0]) + 5)
+            lines[i] = sep.join(cells)
+        at = k + 1
+    else:  # "rate": the time column written at twice the header's rate
+        rate = {QTM_HEAD: 300.0, MOTIVE_121: 120.0}[name]
+        for j, i in enumerate(data):
+            lines[i] = with_time(lines[i], sep, f"{j / (2 * rate):.6f}")
+        at = data[1] + 1
+    return "".join(lines), at
+
+
+KINDS = ("cut", "short", "removed", "repeated", "swapped", "jumping")
+READERS = {QTM_HEAD: read_qualisys_tsv, MOTIVE_121: read_optitrack_csv,
+           OPENFACE: lambda p: read_openface_csv(p, rate=30)}
+
+
+@pytest.mark.parametrize("name, kind", [(n, k) for n in READERS for k in KINDS]
+                         + [(QTM_HEAD, "rate"), (MOTIVE_121, "rate")])
+def test_broken_variants_of_real_files_are_refused_naming_the_line(tmp_path, name, kind):
+    text, at = variant(name, kind)
+    path = tmp_path / f"broken{suite(name).suffix}"
+    path.write_text(text)
+    with pytest.raises(InputError) as err:
+        READERS[name](path)
+    message = str(err.value)
+    assert message.startswith(f"{path}") and "\n" not in message
+    if kind == "cut" and name != OPENFACE:
+        assert f"line {at}, the last one, has no line end" in message
+    elif kind == "rate":
+        assert f"line {at}: Time" in message and "off the grid" in message
+    else:
+        assert f"line {at}" in message, message
+
+
+def test_the_unbroken_files_pass_the_same_readers():
+    for name, reader in READERS.items():
+        assert reader(suite(name)).n_frames > 0
+
+
+# ----------------------------------------------------------------------------- C3D events
+
+def events_by_hand(path):
+    """EVENT:TIMES as ezc3d gives them, paired by hand: a flat list is (minutes, seconds)
+    per event; times from the take's first frame (header first_frame, 0-based in ezc3d)."""
+    c = ezc3d.c3d(str(path))
+    ev = c["parameters"]["EVENT"]
+    used = int(ev["USED"]["value"][0])
+    raw = np.asarray(ev["TIMES"]["value"], dtype=float)
+    pairs = raw.reshape(-1, 2) if raw.ndim == 1 else raw.T
+    start = c["header"]["points"]["first_frame"] / c["parameters"]["POINT"]["RATE"]["value"][0]
+    labels = [str(x).strip() for x in ev["LABELS"]["value"]]
+    return [(labels[k], pairs[k, 0] * 60 + pairs[k, 1] - start) for k in range(used)]
+
+
+def test_flat_event_times_give_ezc3d_s_times():
+    from facemotion.ingest.segments import read_c3d_events
+
+    got = read_c3d_events(suite(C3D_BTK)).events
+    want = events_by_hand(suite(C3D_BTK))
+    assert [lab for lab, _ in got] == [lab for lab, _ in want]
+    assert np.allclose([t for _, t in got], [t for _, t in want], atol=1e-6)
+    # the times the 3.15 s take's first foot strikes are at (the flat list read in halves put
+    # them at -1.47, 186.12 and 123.39 s)
+    assert np.allclose([got[0][1], got[1][1], got[3][1]], [1.58, 0.55, 1.07], atol=1e-6)
+
+
+def test_both_event_layouts_give_the_same_times(tmp_path):
+    """The same events written as a 2 x N array (ezc3d's add_event) and as the flat list."""
+    from facemotion.ingest.segments import read_c3d_events
+    from facemotion.io.c3d import write_c3d
+
+    rec = read_recording(suite(C3D_BTK))
+    write_c3d(tmp_path / "two.c3d", rec)
+    c = ezc3d.c3d(str(tmp_path / "two.c3d"))
+    times = [(0, 0.5), (0, 1.25), (0, 2.75)]
+    for (m, s), lab in zip(times, ("Start", "End", "Start"), strict=True):
+        c.add_event(time=[m, s], context="General", label=lab)
+    c.write(str(tmp_path / "two.c3d"))
+    c = ezc3d.c3d(str(tmp_path / "two.c3d"))
+    assert np.shape(c["parameters"]["EVENT"]["TIMES"]["value"]) == (2, 3)
+    c["parameters"]["EVENT"]["TIMES"]["value"] = np.ravel(times)  # flat, interleaved
+    c.write(str(tmp_path / "flat.c3d"))
+    assert np.ndim(ezc3d.c3d(str(tmp_path / "flat.c3d"))["parameters"]["EVENT"]["TIMES"]
+                   ["value"]) == 1
+    two, flat = (read_c3d_events(tmp_path / n).events for n in ("two.c3d", "flat.c3d"))
+    assert two == flat == events_by_hand(tmp_path / "flat.c3d") == [
+        ("Start", 0.5), ("End", 1.25), ("Start", 2.75)]
+
+
+def test_an_event_outside_the_take_is_an_error_naming_it(tmp_path):
+    from facemotion.ingest.segments import read_c3d_events
+    from facemotion.io.c3d import write_c3d
+
+    rec = read_recording(suite(C3D_BTK))  # 3.15 s
+    write_c3d(tmp_path / "late.c3d", rec)
+    c = ezc3d.c3d(str(tmp_path / "late.c3d"))
+    c.add_event(time=[0, 1.0], context="General", label="Start")
+    c.add_event(time=[0, 3.5], context="General", label="End")
+    c.write(str(tmp_path / "late.c3d"))
+    with pytest.raises(InputError, match=r"late.c3d: event 2 'End' at 3.5 s is outside the take "
+                                         r"\(0-3.15 s"):
+        read_c3d_events(tmp_path / "late.c3d")
