@@ -24,7 +24,7 @@ import click
 from facemotion._version import __version__
 from facemotion.errors import InputError
 from facemotion.io.base import UNITS as UNIT_NAMES
-from facemotion.io.registry import FORMAT_NAMES
+from facemotion.io.registry import FORMAT_NAMES, SUFFIX_FORMATS
 from facemotion.ranking.result import DEFAULT_R_NORMALISATION, R_NORMALISATIONS
 
 #: Tolerances (mm) of the epsilon-rank when none are given: the study's default (qr.tolerances_mm).
@@ -63,7 +63,7 @@ FORMAT = click.option(
     "--format", "fmt", type=click.Choice(FORMAT_NAMES, case_sensitive=False),
     default=None, help="File format. Default: from the file's content (C3D header, TRC "
                        "PathFileType, Motive 'Format Version', QTM header, OpenFace or wide "
-                       "CSV columns), else its suffix (.c3d, .trc, .csv).")
+                       f"CSV columns), else from the file suffix ({', '.join(SUFFIX_FORMATS)}).")
 SUBJECT_PREFIX = click.option(
     "--subject-prefix", default=None, metavar="NAME",
     help="The subject to read from a file whose labels are 'Subject:Marker' with several "
