@@ -425,3 +425,43 @@ def test_an_event_outside_the_take_is_an_error_naming_it(tmp_path):
     with pytest.raises(InputError, match=r"late.c3d: event 2 'End' at 3.5 s is outside the take "
                                          r"\(0-3.15 s"):
         read_c3d_events(tmp_path / "late.c3d")
+
+
+# ----------------------------------------------------------------------------- checks per block
+
+def blockwise(check_block, n, size):
+    """Run ``check_block(start, stop)`` over consecutive blocks of ``size`` rows."""
+    for start in range(0, n, size):
+        check_block(start, min(start + size, n))
+
+
+@pytest.mark.parametrize("kind", ["removed", "repeated", "swapped", "jumping", "rate"])
+def test_the_checks_give_the_same_verdict_block_by_block(tmp_path, kind):
+    """The Motive checks run on blocks of 7 rows (with the frame before each block and its
+    first frame's index) stop at the same line with the same message as on the whole file."""
+    from facemotion.io.optitrack import check_motive_block
+
+    text, _ = variant(MOTIVE_121, kind)
+    path = tmp_path / "m.csv"
+    path.write_text(text)
+    with pytest.raises(InputError) as whole:
+        read_optitrack_csv(path)
+    rows = list(csv.reader(text.splitlines()))[7:]
+    numbers = list(range(8, 8 + len(rows)))
+    frames = np.array([float(r[0]) for r in rows])
+    times = np.array([float(r[1]) for r in rows])
+
+    def check(a, b):
+        check_motive_block(path, numbers[a:b], [len(r) for r in rows[a:b]], 49, frames[a:b],
+                           times[a:b], 120.0, t0=times[0], first_index=a,
+                           previous_frame=frames[a - 1] if a else None)
+
+    with pytest.raises(InputError) as blocks:
+        blockwise(check, len(rows), 7)
+    assert str(blocks.value) == str(whole.value)
+    # the unbroken file passes block by block
+    good = list(csv.reader(suite(MOTIVE_121).read_text().splitlines()))[7:]
+    frames = np.array([float(r[0]) for r in good])
+    times = np.array([float(r[1]) for r in good])
+    rows = good
+    blockwise(check, len(rows), 7)
