@@ -232,8 +232,11 @@ def test_importing_the_package_and_its_modules_touches_no_old_path():
 
 
 #: 0.1 names dropped in 0.2 (CHANGELOG.md, "Removed"): the one-job-over-all-datasets helpers
-#: and the constants the registries replace.
+#: and the constants the registries replace; since 0.2, the comparison's rule strings and
+#: verdict function, which the rule objects of facemotion.papers.table replace.
 REMOVED_IN_0_2 = {
+    "paper_comparison.factor_verdict", "paper_comparison.RULE_EXACT",
+    "paper_comparison.RULE_MARKER", "paper_comparison.RULE_1_5", "paper_comparison.RULE_1_5_10",
     "dense_talker.DENSE_FORMATS", "dense_talker.DENSE_TALKER_SEED", "snakemake_adapter.ACROSS",
     "snakemake_adapter.across_provenance", "snakemake_adapter.dataset_parts",
     "snakemake_adapter.figure_paths", "snakemake_adapter.run_per_dataset",
