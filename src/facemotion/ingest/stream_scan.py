@@ -92,12 +92,28 @@ class TakeScan:
 
     def points(self, a: int = 0, b: int | None = None) -> np.ndarray:
         """Frames [a, b) from the scratch file, outliers NaN (a fresh array)."""
-        b = self.n_frames if b is None else b
-        mm = np.memmap(self.scratch, dtype=np.float64, mode="r",
-                       shape=(self.n_frames, len(self.labels), 3))
-        out = np.array(mm[a:b])
+        out = read_frames(self.scratch, len(self.labels), a, self.n_frames if b is None else b)
         out[self.outliers[a:b]] = np.nan
         return out
+
+
+def read_frames(scratch: Path, n: int, a: int, b: int) -> np.ndarray:
+    """Frames [a, b) of a scratch file of (frames, n, 3) float64, by plain reads (a memory
+    map would count every page it touched in the process's resident memory)."""
+    with open(scratch, "rb") as fh:
+        fh.seek(24 * n * a)
+        out = np.fromfile(fh, dtype=np.float64, count=3 * n * (b - a))
+    return out.reshape(b - a, n, 3)
+
+
+def read_columns(scratch: Path, n: int, F: int, cols, block_frames: int) -> np.ndarray:
+    """Markers ``cols`` of every frame (F, len(cols), 3), read in blocks of frames."""
+    cols = np.asarray(cols, dtype=np.int64)
+    out = np.empty((F, cols.size, 3))
+    for a in range(0, F, block_frames):
+        b = min(F, a + block_frames)
+        out[a:b] = read_frames(scratch, n, a, b)[:, cols]
+    return out
 
 
 @dataclass
@@ -157,14 +173,15 @@ def _block_checks(blk: np.ndarray, a: int, st: _Running, limits: Limits):
     return far, med, ~ok
 
 
-def _fast_outliers(scan_pts, far: np.ndarray, missing: np.ndarray, cut: np.ndarray,
+def _fast_outliers(columns: np.ndarray, cut: np.ndarray, far: np.ndarray, missing: np.ndarray,
                    rate: float, vmax: float):
-    """The whole-take reachability test on the markers with a fast jump (columns read back)."""
+    """The whole-take reachability test on the markers ``cut`` (with a fast jump; their
+    ``columns`` (F, len(cut), 3) read back)."""
     F, n = far.shape
     fast = np.zeros((F, n), dtype=bool)
     top = np.zeros(n)
-    for j in np.flatnonzero(cut):
-        col = np.array(scan_pts[:, j])
+    for k, j in enumerate(cut):
+        col = columns[:, k]
         idx = np.flatnonzero(~missing[:, j] & ~far[:, j])
         if idx.size < 2:
             continue
@@ -230,9 +247,10 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
             b = a + len(blk)
             far[a:b], med[a:b], missing[a:b] = _block_checks(blk, a, st, limits)
             out.write(blk.reshape(-1).view(np.uint8))
-    mm = np.memmap(scratch, dtype=np.float64, mode="r", shape=(F, n, 3))
-    fast, top = _fast_outliers(mm, far, missing, st.cut, src.rate, limits.max_speed_mm_s)
-    del mm
+    step = max(1, block_bytes // (24 * n))
+    cut = np.flatnonzero(st.cut)
+    fast, top = _fast_outliers(read_columns(scratch, n, F, cut, step), cut, far, missing,
+                               src.rate, limits.max_speed_mm_s)
     outliers = far | fast
     spread = _check_spread(med, rec, limits)
     if st.any_ok and not st.moved:
@@ -253,7 +271,7 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
     scan = TakeScan(where, list(used), src.rate, F, Path(scratch), outliers, missing, check)
     if head_markers:
         hcols = [used.index(h) for h in head_markers]
-        h = np.array(np.memmap(scratch, dtype=np.float64, mode="r", shape=(F, n, 3))[:, hcols])
+        h = read_columns(scratch, n, F, hcols, step)
         h[outliers[:, hcols]] = np.nan
         scan.head = h
     return scan

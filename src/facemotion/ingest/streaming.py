@@ -35,7 +35,7 @@ import pandas as pd
 
 from facemotion.errors import InputError
 from facemotion.ingest.gap_windows import GapPlan, fill_window, plan_gaps
-from facemotion.ingest.stream_scan import TakeScan, scan_take
+from facemotion.ingest.stream_scan import TakeScan, read_columns, scan_take
 from facemotion.ingest.validation import Limits
 
 log = logging.getLogger("facemotion")
@@ -152,14 +152,13 @@ def same_shape(scans: list[TakeScan], limits: Limits, budget: Budget,
     n = len(s0.labels)
     per_col = max(1, int(budget.max_gib * 2**30 / 4 / (24 * s0.n_frames)))
     ref = np.empty((n, 3))
-    mm = np.memmap(s0.scratch, dtype=np.float64, mode="r", shape=(s0.n_frames, n, 3))
     for c in range(0, n, per_col):
-        x = np.array(mm[:, c:c + per_col])
+        x = read_columns(s0.scratch, n, s0.n_frames, np.arange(c, min(n, c + per_col)),
+                         budget.frames)
         x[s0.outliers[:, c:c + per_col]] = np.nan
         x[~np.isfinite(x)] = np.nan
         with np.errstate(all="ignore"):
             ref[c:c + per_col] = np.nanmedian(x, axis=0) if len(x) else np.nan
-    del mm
     cols = np.isfinite(ref).all(axis=1)
     idx = np.flatnonzero(cols)
     out = [0.0]
