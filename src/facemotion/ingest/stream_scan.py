@@ -139,6 +139,22 @@ class _Running:
         self.far_max = np.zeros(self.n)
 
 
+def _steps_full(x: np.ndarray, cols: np.ndarray, a: int, st: _Running) -> None:
+    """The speed cuts of markers ``cols`` valid in every frame of the block (x: their points),
+    vectorised: consecutive frames, and the link to each one's last valid sample before."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        d = np.diff(x, axis=0)
+        speed = np.sqrt(np.einsum("fnc,fnc->fn", d, d)) * st.rate
+        st.cut[cols] |= np.any(~(speed <= st.vmax), axis=0)
+        seen = st.last_f[cols] >= 0
+        if seen.any():
+            c = cols[seen]
+            link = np.linalg.norm(x[0, seen] - st.last_x[c], axis=1) * st.rate / (a - st.last_f[c])
+            st.cut[c] |= ~(link <= st.vmax)
+    st.last_x[cols] = x[-1]
+    st.last_f[cols] = a + len(x) - 1
+
+
 def _block_checks(blk: np.ndarray, a: int, st: _Running, limits: Limits):
     """One block: (far (b, n) bool, per-frame median distance (b,) NaN where < 3 markers,
     missing (b, n)); updates the carried state (speed cuts, first positions, moves)."""
@@ -151,7 +167,10 @@ def _block_checks(blk: np.ndarray, a: int, st: _Running, limits: Limits):
     st.far_max = np.maximum(st.far_max, d0.max(axis=0))
     ok = finite_samples(blk)
     valid = ok & ~far
-    for j in np.flatnonzero(valid.any(axis=0)):
+    full = valid.all(axis=0)
+    if full.any():
+        _steps_full(blk[:, full], np.flatnonzero(full), a, st)
+    for j in np.flatnonzero(valid.any(axis=0) & ~full):
         idx = np.flatnonzero(valid[:, j])
         x = blk[idx, j]
         f = a + idx

@@ -14,6 +14,7 @@ lines (NumFrames) and whether the last line has a line end.
 
 from __future__ import annotations
 
+import io
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -91,6 +92,9 @@ class TrcBlocks:
 
     def _parse(self, chunk: bytes, first_line: int):
         """(values (lines x ncol), their line numbers, lines in the chunk incl. blank)."""
+        quick = _parse_plain(chunk, self.ncol)
+        if quick is not None:
+            return quick, first_line + np.arange(len(quick)), len(quick)
         try:
             fields, data = _line_fields(chunk, ord("\t"), self.ncol, True)
             vals = (_parse_chunk(chunk, b"\t", int(fields.max()), self.ncol, fields.size)
@@ -153,6 +157,30 @@ class TrcBlocks:
                              "is wrong")
         c.last_frame = float(frame_numbers[-1])
         c.last_line = int(numbers[-1])
+
+
+def _parse_plain(chunk: bytes, ncol: int) -> np.ndarray | None:
+    """The values of a block whose every line is a data line of exactly ``ncol`` fields, or
+    None. Checked without a pass per byte in Python or numpy: the C parser is given ``ncol``
+    columns, so a line with more fields stops it; then no line is blank (one row per line end)
+    and the tabs add up to ``ncol - 1`` per line, so no line has fewer."""
+    import csv as _csv
+
+    import pandas as pd
+
+    if not chunk.isascii() or b"\0" in chunk:
+        return None
+    lines = chunk.count(b"\n")
+    if chunk.count(b"\t") != lines * (ncol - 1):
+        return None
+    try:
+        df = pd.read_csv(io.BytesIO(chunk), sep="\t", header=None, names=range(ncol),
+                         index_col=False, dtype=np.float64, engine="c",
+                         keep_default_na=False, na_values=[""], quoting=_csv.QUOTE_NONE,
+                         skip_blank_lines=True)
+    except (ValueError, TypeError, pd.errors.ParserError):
+        return None
+    return df.to_numpy(dtype=np.float64) if len(df) == lines else None
 
 
 def _line_chunks(path: Path, offset: int, block_bytes: int) -> Iterator[bytes]:
