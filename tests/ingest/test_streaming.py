@@ -139,3 +139,32 @@ def test_the_checks_give_the_whole_take_errors(tmp_path):
     with pytest.raises(InputError) as streamed:
         stream_dataset([str(p)], "trc", tmp_path / "A.npz", **kw, max_gib=MAX_GIB)
     assert str(streamed.value) == str(whole.value)
+
+
+def test_a_scattered_load_gathers_the_single_jobs_gram_and_pivots(takes):
+    """One job per take (head points, reference, take), then the sum: the single job's G to
+    round-off, the same pivots; each take's part of A is the single job's rows."""
+    from facemotion.ingest import scatter
+
+    d, paths = takes
+    roles = ["train", "train", "heldout"]
+    used = [f"M{j:02d}" for j in range(40)] + HEAD
+    scans = [scatter.scan_heads(p, "trc", used, HEAD, units="mm") for p in paths]
+    ref = scatter.gather_reference([h for h, _ in scans], [r for _, r in scans], HEAD, paths[0])
+    opts = dict(units="mm", head_markers=HEAD, exclude_markers=HEAD, max_gib=MAX_GIB)
+    parts = [scatter.load_take(p, "trc", d / f"part{i}.npz", head_reference=ref, **opts)
+             for i, p in enumerate(paths)]
+    G = scatter.gather_gram([s.gram for s in parts], roles)
+    single = stream_dataset(paths, "trc", d / "single.npz", **KW, max_gib=MAX_GIB)
+    np.testing.assert_allclose(G, single.gram, rtol=0, atol=1e-13 * np.abs(G).max())
+    assert not np.array_equal(G, parts[0].gram)  # the sum, not one take
+    r_g = rank_from_gram(G, sum(s.train_rows for s in parts[:2]), parts[0].labels)
+    r_s = rank_from_gram(single.gram, single.train_rows, single.labels)
+    assert list(r_g.order) == list(r_s.order)
+    A = load_displacements(d / "single.npz").A
+    rows = np.cumsum([0] + [s.train_rows for s in parts])
+    for i in range(3):
+        np.testing.assert_array_equal(load_displacements(d / f"part{i}.npz").A,
+                                      A[rows[i]:rows[i + 1]])
+    with pytest.raises(InputError, match="no training take"):
+        scatter.gather_gram([s.gram for s in parts], ["heldout"] * 3)

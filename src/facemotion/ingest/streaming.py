@@ -113,24 +113,40 @@ def _same_layout(paths: list[str], fmt: str, subject_prefix) -> list[str]:
     return first
 
 
-def head_reference(scans: list[TakeScan], head_markers: list[str], where: str):
-    """The head reference and each take's head-fit residuals, as
-    :func:`facemotion.ingest.loading.remove_head_motion` computes them (the head markers only:
-    their points are kept by the first pass)."""
+def reference_from_heads(heads: list[np.ndarray], rate: float, head_markers: list[str],
+                         where: str) -> np.ndarray:
+    """The head reference of :func:`facemotion.ingest.loading.remove_head_motion` from every
+    take's head-marker points (frames, head, 3; outliers NaN), in the dataset's order: the
+    median over all takes of the head aligned to the first take's first complete frame."""
     from facemotion.ingest.head_motion import align_head
     from facemotion.io.recording import Recording, finite_samples
 
     if len(head_markers) < 3:
         raise InputError(f"{where}: {len(head_markers)} head marker(s) given "
                          f"({', '.join(head_markers)}); at least 3 are needed")
-    heads = [Recording(list(head_markers), s.head, s.rate, s.source) for s in scans]
-    complete = np.flatnonzero(finite_samples(heads[0].points).all(axis=1))
+    complete = np.flatnonzero(finite_samples(heads[0]).all(axis=1))
     if complete.size == 0:
         raise InputError(f"{where}: no frame has all head markers {', '.join(head_markers)}")
-    first = heads[0].points[complete[0]]
-    stacked = np.concatenate([align_head(h, head_markers, reference=first)[0].points
-                              for h in heads])
-    reference = np.nanmedian(stacked, axis=0)
+    first = heads[0][complete[0]]
+    stacked = np.concatenate([
+        align_head(Recording(list(head_markers), h, rate), head_markers, reference=first)[0].points
+        for h in heads])
+    return np.nanmedian(stacked, axis=0)
+
+
+def head_reference(scans: list[TakeScan], head_markers: list[str], where: str,
+                   reference: np.ndarray | None = None):
+    """The head reference (``reference`` when given: a scattered load's, computed from all the
+    takes) and each take's head-fit residuals, as
+    :func:`facemotion.ingest.loading.remove_head_motion` computes them (the head markers only:
+    their points are kept by the first pass)."""
+    from facemotion.ingest.head_motion import align_head
+    from facemotion.io.recording import Recording
+
+    if reference is None:
+        reference = reference_from_heads([s.head for s in scans], scans[0].rate, head_markers,
+                                         where)
+    heads = [Recording(list(head_markers), s.head, s.rate, s.source) for s in scans]
     residuals = []
     for h in heads:
         res = align_head(h, head_markers, reference=reference)[1]
@@ -229,9 +245,12 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
                    limits: Limits | None = None, sentences: list | None = None,
                    subject_prefix: str | None = None, copy_markers=(),
                    markers_named_in: str = "the subject sheet",
-                   max_gib: float = MAX_GIB) -> StreamedDataset:
+                   max_gib: float = MAX_GIB,
+                   head_reference: np.ndarray | None = None) -> StreamedDataset:
     """:func:`~facemotion.ingest.loading.load_dataset`'s dataset, streamed (module notes): A
-    written to the displacements file ``out``, the training rows' Gram returned."""
+    written to the displacements file ``out``, the training rows' Gram returned.
+    ``head_reference``: the head markers' reference (:func:`reference_from_heads` of every
+    take of the dataset) when this call loads a part of it (one job of a scattered load)."""
     from facemotion.ingest.loading import check_marker_lists
     from facemotion.ingest.segments import Segment
 
@@ -262,13 +281,14 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
                                    block_bytes=budget.text_bytes))
         return _second_pass(scans, chosen, roles, keep, used, out, budget, limits,
                             head_markers=list(head_markers), where=where, neutral=neutral,
-                            max_interp_s=max_interp_s, long_gaps=long_gaps)
+                            max_interp_s=max_interp_s, long_gaps=long_gaps,
+                            reference=head_reference)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
 
 def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_markers,
-                 where, neutral, max_interp_s, long_gaps) -> StreamedDataset:
+                 where, neutral, max_interp_s, long_gaps, reference=None) -> StreamedDataset:
     """Checks across takes, the head reference, then every take to A and G."""
     from types import SimpleNamespace
 
@@ -282,7 +302,7 @@ def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_
                              f"{scans[0].source} ({scans[0].rate} Hz)")
     shape_rms = same_shape(scans, limits, budget)
     if head_markers:
-        reference, residuals = head_reference(scans, head_markers, where)
+        reference, residuals = head_reference(scans, head_markers, where, reference)
     else:
         reference, residuals = None, [np.zeros(s.n_frames) for s in scans]
     dropped = [m for m in used if m not in set(keep)]
