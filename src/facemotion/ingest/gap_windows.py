@@ -113,8 +113,10 @@ def fill_window(pts: np.ndarray, lo: int, a: int, b: int, plan: GapPlan, rate: f
     from scipy.interpolate import CubicSpline
 
     hi = lo + len(pts)
-    pts = pts.copy()
     miss = ~np.isfinite(pts).all(axis=2)
+    if not miss.any():
+        return pts[a - lo:b - lo]
+    pts = pts.copy()
     pts[miss] = np.nan
     inside = (plan.a >= lo) & (plan.b <= hi)
     cubic = inside & ~plan.long & (plan.lo >= lo) & (plan.hi <= hi)

@@ -92,8 +92,11 @@ class TakeScan:
 
     def points(self, a: int = 0, b: int | None = None) -> np.ndarray:
         """Frames [a, b) from the scratch file, outliers NaN (a fresh array)."""
-        out = read_frames(self.scratch, len(self.labels), a, self.n_frames if b is None else b)
-        out[self.outliers[a:b]] = np.nan
+        b = self.n_frames if b is None else b
+        out = read_frames(self.scratch, len(self.labels), a, b)
+        bad = self.outliers[a:b]
+        if bad.any():
+            out[bad] = np.nan
         return out
 
 
@@ -255,6 +258,7 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
     if missing_labels:
         raise InputError(f"{where}: marker {missing_labels[0]!r} is not in the data")
     cols = np.array([src.labels.index(m) for m in used])
+    whole = np.array_equal(cols, np.arange(len(src.labels)))  # every marker: no copy
     F, n = src.n_frames, len(used)
     far = np.zeros((F, n), dtype=bool)
     missing = np.zeros((F, n), dtype=bool)
@@ -262,7 +266,8 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
     st = _Running(n, limits.max_speed_mm_s, src.rate)
     with open(scratch, "wb") as out:
         for a, blk in src.blocks(block_bytes):
-            blk = np.ascontiguousarray(blk[:, cols])
+            if not whole:
+                blk = np.ascontiguousarray(blk[:, cols])
             b = a + len(blk)
             far[a:b], med[a:b], missing[a:b] = _block_checks(blk, a, st, limits)
             out.write(blk.reshape(-1).view(np.uint8))

@@ -69,7 +69,15 @@ class TrcBlocks:
         or text beyond them, a non-numeric value, Frame# not increasing, a Time off the grid,
         other than NumFrames data lines, a last line without a line end."""
         c = _Carry()
-        for chunk in _line_chunks(self.path, self.offset, block_bytes):
+        chunks = _line_chunks(self.path, self.offset, block_bytes)
+        while True:
+            try:
+                chunk = next(chunks)
+            except StopIteration:
+                break
+            except _CutShort:
+                raise InputError(f"{self.path}: line {c.line_no}, the last one, has no line "
+                                 "end: the file looks cut short") from None
             values, numbers, n_lines = self._parse(chunk, c.line_no)
             c.line_no += n_lines
             if not len(values):
@@ -183,28 +191,28 @@ def _parse_plain(chunk: bytes, ncol: int) -> np.ndarray | None:
     return df.to_numpy(dtype=np.float64) if len(df) == lines else None
 
 
+class _CutShort(Exception):
+    """The file's last line has no line end."""
+
+
 def _line_chunks(path: Path, offset: int, block_bytes: int) -> Iterator[bytes]:
-    """The file from ``offset`` in chunks of whole lines; InputError on a last line without
-    a line end (the file was cut short)."""
+    """The file from ``offset`` in chunks of whole lines; _CutShort after the last whole line
+    when text without a line end follows it (the file was cut short)."""
     carry = b""
-    line_no = 6
     with open(path, "rb") as fh:
         fh.seek(offset)
         while True:
             data = fh.read(block_bytes)
-            buf = carry + data
             if not data:
-                if buf.strip(b" \r\n"):
-                    n = line_no + buf.count(b"\n")
-                    raise InputError(f"{path}: line {n}, the last one, has no line end: the "
-                                     "file looks cut short")
+                if carry.strip(b" \r\n"):
+                    raise _CutShort
                 return
+            buf = carry + data if carry else data
             cut = buf.rfind(b"\n") + 1
             if cut == 0:
                 carry = buf
                 continue
-            line_no += buf.count(b"\n", 0, cut)
-            yield buf[:cut]
+            yield buf if cut == len(buf) else buf[:cut]
             carry = buf[cut:]
 
 
