@@ -4,39 +4,8 @@
 # a dataset load on as many nodes as there are takes.
 
 
-def stream_take_ids(dataset):
-    """The dataset's takes as t001, t002, ... in its order (training, then held out)."""
-    ds = DATASETS[dataset]
-    return [f"t{i + 1:03d}" for i in range(len(ds.train) + len(ds.heldout))]
-
-
-def stream_params(wildcards):
-    """A take's file and role, and the dataset's loading settings."""
-    ds = DATASETS[wildcards.dataset]
-    order = list(ds.train) + list(ds.heldout)
-    i = int(wildcards.take[1:]) - 1
-    subj = SUBJECTS[ds.subject]
-    return {
-        "ds": dataset_params(SUBJECTS, DATASETS, wildcards.dataset),
-        "recording": subj.recordings[order[i]],
-        "role": "train" if i < len(ds.train) else "heldout",
-    }
-
-
-def stream_heads(wildcards):
-    return expand(
-        "<results>/{dataset}/stream/heads/{take}.npz",
-        dataset=wildcards.dataset,
-        take=stream_take_ids(wildcards.dataset),
-    )
-
-
-def stream_grams(wildcards):
-    return expand(
-        "<results>/{dataset}/stream/takes/{take}.gram.npz",
-        dataset=wildcards.dataset,
-        take=stream_take_ids(wildcards.dataset),
-    )
+localrules:
+    stream,
 
 
 rule stream:
@@ -55,6 +24,8 @@ rule scan_take_heads:
         "<results>/logs/scan_take_heads/{dataset}/{take}.log",
     wildcard_constraints:
         take=r"t\d{3}",
+    conda:
+        "../envs/facemotion.yaml"
     threads: 1
     resources:
         mem_mb=lambda wc: int(1536 * config["memory"]["max_gib"]),
@@ -77,6 +48,8 @@ rule gather_head_reference:
         npz="<results>/{dataset}/stream/head_reference.npz",
     log:
         "<results>/logs/gather_head_reference/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
     threads: 1
     params:
         ds=lambda wc: dataset_params(SUBJECTS, DATASETS, wc.dataset),
@@ -97,6 +70,8 @@ rule stream_take:
         "<results>/logs/stream_take/{dataset}/{take}.log",
     wildcard_constraints:
         take=r"t\d{3}",
+    conda:
+        "../envs/facemotion.yaml"
     threads: 1
     resources:
         mem_mb=lambda wc: int(1536 * config["memory"]["max_gib"]),
@@ -120,6 +95,8 @@ rule gather_gram:
         npz="<results>/{dataset}/stream/gram.npz",
     log:
         "<results>/logs/gather_gram/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
     threads: 1
     params:
         roles=lambda wc: [
