@@ -110,12 +110,11 @@ def fill_window(pts: np.ndarray, lo: int, a: int, b: int, plan: GapPlan, rate: f
                 labels: list[str], src: str) -> np.ndarray:
     """Frames [a, b) of the take filled, from ``pts``: its frames [lo, lo + len(pts)) (NaN
     where missing). The values equal those of the whole-take fill (module notes)."""
-    from scipy.interpolate import CubicSpline
-
     hi = lo + len(pts)
+    if not ((plan.b > lo) & (plan.a < hi)).any():
+        return pts[a - lo:b - lo]  # no gap in the window: nothing to fill
+    from scipy.interpolate import CubicSpline  # a heavy import, for takes with gaps
     miss = ~np.isfinite(pts).all(axis=2)
-    if not miss.any():
-        return pts[a - lo:b - lo]
     pts = pts.copy()
     pts[miss] = np.nan
     inside = (plan.a >= lo) & (plan.b <= hi)
