@@ -2,7 +2,7 @@
 memory, beside pandas.read_csv (TRC) or ezc3d (C3D) reading the same file in the same run.
 
     python benchmarks/bench_stream.py [--cases trc468 trc5023 ...] [--max-gib 1.0]
-                                      [--fit] [--page docs/performance.md]
+                                      [--fit] [--arrow] [--page docs/performance.md]
 
 Each measurement runs in its own child process; its peak RSS is the child's high-water mark
 (VmHWM). Ours: :func:`facemotion.ingest.streaming.stream_dataset` on the take (every check,
@@ -10,9 +10,9 @@ gap filling, displacements to a file, the Gram of the rows), then
 :func:`facemotion.ranking.qr.rank_from_gram` (the r values). The held-out error curve is not
 part of the streamed path yet and is not timed. Baselines of the same file, interleaved with
 ours (ours, baseline): ``pandas.read_csv`` (C parser, the whole file into one frame) for TRC;
-``ezc3d.c3d`` for C3D; where pyarrow is installed, its ``read_csv`` (multithreaded) and its
-streaming ``open_csv`` (one thread, batches) are timed too, to choose the block parser by
-measurement.
+``ezc3d.c3d`` for C3D; with ``--arrow`` (pyarrow installed) also pyarrow's ``read_csv``
+(multithreaded) and its streaming ``open_csv`` (one thread, batches), which is how the block
+parser was chosen.
 
 Cases (``--cases``; the files are written once into benchmarks/out/stream/):
 
@@ -179,12 +179,14 @@ def worker(kind: str, path: str, fmt: str, max_gib: str) -> dict:
     return res
 
 
-def _baselines(fmt: str, huge: bool, size: int) -> list[str]:
-    """pandas (ezc3d for C3D); pyarrow's readers where installed (its read_csv holds about
+def _baselines(fmt: str, huge: bool, size: int, arrow: bool) -> list[str]:
+    """pandas (ezc3d for C3D); with ``arrow``, pyarrow's readers (its read_csv holds about
     three times the file: only below 2 GB)."""
     if fmt == "c3d":
         return ["ezc3d"]
     out = ["pandas"] if huge else []
+    if not arrow:
+        return out
     try:
         import pyarrow  # noqa: F401
 
@@ -194,12 +196,12 @@ def _baselines(fmt: str, huge: bool, size: int) -> list[str]:
     return out
 
 
-def run_case(name: str, max_gib: float, reps: int, huge_baseline: bool) -> None:
+def run_case(name: str, max_gib: float, reps: int, huge_baseline: bool, arrow: bool) -> None:
     fmt, n, frames = CASES[name]
     OUT.mkdir(parents=True, exist_ok=True)
     path = write_take(OUT / f"{name}.{fmt}", fmt, n, frames)
     size = path.stat().st_size
-    base = _baselines(fmt, name != "trc10g" or huge_baseline, size)
+    base = _baselines(fmt, name != "trc10g" or huge_baseline, size, arrow)
     runs = {k: [] for k in ["ours", *base]}
     for _ in range(reps):  # interleaved: ours, then each baseline
         for k in runs:
@@ -245,7 +247,8 @@ def fit(max_gib: float) -> None:
 
 def page_table(args, load0, load1) -> str:
     lines = [f"Written by `python benchmarks/bench_stream.py --cases {' '.join(args.cases)}"
-             f"{' --fit' if args.fit else ''} --page docs/performance.md` on "
+             f"{' --fit' if args.fit else ''}{' --arrow' if args.arrow else ''} "
+             f"--page docs/performance.md` on "
              f"{time.strftime('%Y-%m-%d')}: memory.max_gib = {args.max_gib:g}, medians of "
              f"{args.reps}; load average {load0:.2f} at the start, {load1:.2f} at the end.", "",
              "| case | measure | value | unit | target | met | note |",
@@ -270,11 +273,13 @@ def main(argv=None) -> int:
     ap.add_argument("--fit", action="store_true")
     ap.add_argument("--huge-baseline", action="store_true",
                     help="trc10g: also pandas.read_csv (about 13 GiB)")
+    ap.add_argument("--arrow", action="store_true",
+                    help="also pyarrow's read_csv and open_csv (when installed)")
     ap.add_argument("--page")
     args = ap.parse_args(argv)
     load0 = os.getloadavg()[0]
     for name in args.cases:
-        run_case(name, args.max_gib, args.reps, args.huge_baseline)
+        run_case(name, args.max_gib, args.reps, args.huge_baseline, args.arrow)
     if args.fit:
         fit(args.max_gib)
     if args.page:
