@@ -10,10 +10,11 @@ The measures then come from sums over blocks:
   curve's: they agree to round-off);
 * the median: exact on the blocks' residuals (which agree with the whole matrix's to
   round-off: BLAS groups its sums by the rows it is given), by selection over three passes
-  over the blocks (residuals recomputed, the same numbers each time): pass 1 gives each k's count, minimum and maximum; pass 2 counts the
-  distances in ``MEDIAN_BINS`` equal bins between them and finds the bin(s) holding the middle
-  order statistic(s); pass 3 keeps only the distances in those bins and selects the middle one(s)
-  among them. Memory: one block's residuals and, per k, the bin counts and one bin's values.
+  over the blocks (residuals recomputed, the same numbers each time): pass 1 gives each k's
+  count, minimum and maximum; pass 2 counts the distances in ``MEDIAN_BINS`` equal bins
+  between them and finds the bin(s) holding the middle order statistic(s); pass 3 keeps only
+  the distances in those bins and selects the middle one(s) among them. Memory: one block's
+  residuals and, per k, the bin counts and one bin's values.
 """
 
 from __future__ import annotations
