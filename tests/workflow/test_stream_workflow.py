@@ -1,6 +1,7 @@
 """The scattered streamed load (target `stream`: one job per take, gathered) against the
-study's whole-take loading rule, on the dense talker: the gathered Gram is the training rows'
-A^T A of the study's displacements.npz to round-off, with the same pivots."""
+study's whole-take loading rule, on the dense study's talker (TRC, 468 points) and the default
+study's S2a (C3D): the gathered Gram is the training rows' A^T A of the study's
+displacements.npz to round-off, with the same pivots."""
 
 import subprocess
 import sys
@@ -14,14 +15,14 @@ from facemotion.ranking.qr import rank_from_gram
 
 pytestmark = pytest.mark.workflow
 
-CONFIG = f"""\
+CONFIG = """\
 study: streamcheck
-subjects: {REPO / "config" / "dense_subjects.tsv"}
-shared_data: {SHARED_DATA}
+subjects: {sheet}
+shared_data: {shared}
 default_datasets: false
 datasets:
   dense4:
-    subject: dense468
+    subject: {subject}
     train: "1-3"
     heldout: "4"
 memory:
@@ -29,8 +30,11 @@ memory:
 """
 
 
-def test_the_gathered_gram_is_the_whole_take_loads(tmp_path):
-    (tmp_path / "c.yaml").write_text(CONFIG)
+@pytest.mark.parametrize("sheet,subject", [("dense_subjects.tsv", "dense468"),
+                                           ("subjects.tsv", "S2a")])
+def test_the_gathered_gram_is_the_whole_take_loads(tmp_path, sheet, subject):
+    (tmp_path / "c.yaml").write_text(CONFIG.format(sheet=REPO / "config" / sheet,
+                                                   shared=SHARED_DATA, subject=subject))
     root = tmp_path / "results" / "streamcheck" / "dense4"
     targets = [str((root / f).relative_to(tmp_path))
                for f in ("stream/gram.npz", "data/displacements.npz")]
