@@ -12,6 +12,7 @@ from facemotion.study.settings import limits_from_config
 
 def main(sm, log, prov):
     ds, take = sm.params.take["ds"], sm.params.take["recording"]
+    log.info("%s: streamed, memory.max_gib = %g", take, sm.params.max_gib)
     ref = np.load(sm.input.reference)
     gaps = sm.params.gaps
     part = load_take(

@@ -109,7 +109,7 @@ def test_a_spline_window_too_narrow_is_caught_by_the_tolerance(takes, monkeypatc
 
 def test_a_window_beyond_the_memory_bound_is_an_error_naming_the_setting(takes):
     d, paths = takes
-    with pytest.raises(InputError, match=r"take0\.trc: filling frames .* memory\.max_gib"):
+    with pytest.raises(InputError, match=r"take0\.trc: filling frames .* raise max_gib"):
         stream_dataset(paths, "trc", d / "B.npz", **KW, max_gib=0.02)
     assert not (d / "B.npz").exists()
     assert not [p for p in d.iterdir() if p.name.startswith(".B.npz")]
@@ -123,7 +123,7 @@ def test_what_the_streamed_loader_does_not_take_is_an_error(takes):
     with pytest.raises(InputError, match="cut from its take"):
         stream_dataset(paths, "trc", d / "C.npz", **{**KW, "train": [0], "heldout": []},
                        sentences=cut)
-    with pytest.raises(InputError, match="memory.max_gib: must be positive"):
+    with pytest.raises(InputError, match="max_gib: must be positive"):
         stream_dataset(paths, "trc", d / "C.npz", **KW, max_gib=0.0)
 
 

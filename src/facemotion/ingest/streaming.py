@@ -15,8 +15,9 @@ holding a whole recording:
    into G (the training sentences' rows: G = sum_b A_b^T A_b, the Gram route of
    :mod:`facemotion.ranking.gram`).
 
-``max_gib`` bounds the memory: it sets the blocks' sizes, the log says the bound and the
-sizes, and a gap whose fill needs a window larger than the bound is an error naming it.
+``max_gib`` (the workflow's setting ``memory.max_gib``) bounds the memory: it sets the
+blocks' sizes, the log says the bound and the sizes, and a gap whose fill needs a window larger
+than the bound is an error naming it.
 Not streamed (an InputError says so): sentences cut from takes (``segments``) and
 ``copy_markers`` (their offsets are medians over every take), and readers without a block
 reader (formats other than TRC, and TRC with a subject prefix: read whole, then blocked).
@@ -74,14 +75,14 @@ class Budget:
     @classmethod
     def of(cls, max_gib: float, n_used: int) -> Budget:
         if not np.isfinite(max_gib) or max_gib <= 0:
-            raise InputError(f"memory.max_gib: must be positive, got {max_gib!r}")
+            raise InputError(f"max_gib: must be positive, got {max_gib!r}")
         total = max_gib * 2**30
         text = int(min(64 * 2**20, max(2**20, total / 24)))
         per_frame = 24 * max(n_used, 1) * WINDOW_COPIES
         window = int(0.5 * total / per_frame)
         frames = max(16, min(window // 4, 8192))
         if window < 2 * frames:
-            raise InputError(f"memory.max_gib = {max_gib:g}: too small for {n_used} markers "
+            raise InputError(f"max_gib = {max_gib:g}: too small for {n_used} markers "
                              f"(a window of {window} frames)")
         return cls(max_gib, text, frames, window)
 
@@ -222,8 +223,8 @@ def stream_take(scan: TakeScan, keep: list[str], plan: GapPlan, writer, G, budge
         if hi - lo > budget.window_frames:
             raise InputError(f"{scan.source}: filling frames {a}-{b} needs a window of "
                              f"{hi - lo} frames (a long gap's model window), more than "
-                             f"memory.max_gib = {budget.max_gib:g} allows "
-                             f"({budget.window_frames} frames): raise memory.max_gib")
+                             f"max_gib = {budget.max_gib:g} allows "
+                             f"({budget.window_frames} frames): raise max_gib")
         pts = scan.points(lo, hi)
         if head_markers:
             rec = Recording(list(scan.labels), pts, scan.rate, scan.source)
@@ -265,7 +266,7 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
     keep, used = check_marker_lists(labels, where, head_markers, exclude_markers,
                                     include_markers, markers_named_in)
     budget = Budget.of(max_gib, len(used))
-    log.info("streamed load: memory.max_gib = %g: %d MiB of text per read, %d frames per "
+    log.info("streamed load: memory bound max_gib = %g GiB: %d MiB of text per read, %d frames per "
              "block, windows up to %d frames", max_gib, budget.text_bytes >> 20,
              budget.frames, budget.window_frames)
     out = Path(out)
