@@ -21,6 +21,9 @@ if __name__ == "__main__":
     # the cases that run in minutes; mem4g, dense and talker: see docs/performance.md
     rc |= subprocess.call([sys.executable, str(HERE / "bench_dense.py"), *quick, "--only",
                            "peak", "rank10x", "load20k", "reader", "--page", page])
+    # hours of dense faces, streamed: the 468-point hour and the exponents (docs/performance.md)
+    rc |= subprocess.call([sys.executable, str(HERE / "bench_stream.py"), "--cases", "trc468",
+                           "--fit", "--page", page])
     rc |= subprocess.call([sys.executable, str(HERE / "bench_study.py"), "--repeat", "3",
                            "--page", page])
     rc |= subprocess.call([sys.executable, str(HERE / "bench_before_after.py"), "--repeat", "3",

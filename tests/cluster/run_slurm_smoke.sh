@@ -282,7 +282,8 @@ if [[ $MODE == smoke ]]; then
   SNAP="$TMP/snapshot/$(basename "$ROOT")"
   mkdir -p "$SNAP"
   tar -C "$ROOT" --exclude=./.venv --exclude=./.git --exclude=./results --exclude=./.snakemake \
-    --exclude=./.pytest_cache --exclude=./.ruff_cache --exclude=__pycache__ -cf - . |
+    --exclude=./.pytest_cache --exclude=./.ruff_cache --exclude=./benchmarks/out \
+    --exclude=__pycache__ -cf - . |
     tar -C "$SNAP" -xf - || skip "could not copy the workflow to $SNAP"
   # the real data live beside the project root (../shared/data)
   [[ -e $ROOT/../shared ]] && ln -s "$(cd "$ROOT/../shared" && pwd)" "$TMP/snapshot/shared"

@@ -163,6 +163,8 @@ MAPPING: dict[str, list[tuple]] = {
                 ("facemotion.lips.pipeline:LipSettings", "nu"),
                 ("facemotion.lips.fem:assemble_stiffness", "nu")],
     "figures.formats": [("facemotion.plots.save:figure_paths", "formats")],
+    "memory.max_gib": [("facemotion.ingest.streaming:stream_dataset", "max_gib"),
+                       ("facemotion.ingest.scatter:scan_heads", "max_gib")],
     "datasets.*.mesh_labels": [("facemotion.plots.face_mesh:DEFAULT_LABELS", None)],
 }
 
@@ -188,6 +190,7 @@ WORKFLOW_ONLY = {
 NOT_THE_SETTING = {
     ("facemotion.ingest.loading", "sentences"): "the intervals of the takes, not how many "
                                                 "sentences the animation shows",
+    ("facemotion.ingest.streaming", "sentences"): "the intervals of the takes (as loading's)",
     ("facemotion.lips", "n_modes"): "the generic PCA and LLSE keep every mode unless told",
     ("facemotion.lips.pca", "n_modes"): "the generic PCA keeps every mode unless told",
     ("facemotion.lips.llse", "n_modes"): "the generic LLSE uses every mode unless told",

@@ -441,3 +441,39 @@ def print_closing_summary():
     text = closing_message(RESULTS, workflow.start_time.timestamp(), command)
     if text:
         print(text, flush=True)
+
+
+# ---- streamed loading, one job per take (rules/stream.smk) ----
+def stream_take_ids(dataset):
+    """The dataset's takes as t001, t002, ... in its order (training, then held out)."""
+    ds = DATASETS[dataset]
+    return [f"t{i + 1:03d}" for i in range(len(ds.train) + len(ds.heldout))]
+
+
+def stream_params(wildcards):
+    """A take's file and role, and the dataset's loading settings."""
+    ds = DATASETS[wildcards.dataset]
+    order = list(ds.train) + list(ds.heldout)
+    i = int(wildcards.take[1:]) - 1
+    subj = SUBJECTS[ds.subject]
+    return {
+        "ds": dataset_params(SUBJECTS, DATASETS, wildcards.dataset),
+        "recording": subj.recordings[order[i]],
+        "role": "train" if i < len(ds.train) else "heldout",
+    }
+
+
+def stream_heads(wildcards):
+    return expand(
+        "<results>/{dataset}/stream/heads/{take}.npz",
+        dataset=wildcards.dataset,
+        take=stream_take_ids(wildcards.dataset),
+    )
+
+
+def stream_grams(wildcards):
+    return expand(
+        "<results>/{dataset}/stream/takes/{take}.gram.npz",
+        dataset=wildcards.dataset,
+        take=stream_take_ids(wildcards.dataset),
+    )

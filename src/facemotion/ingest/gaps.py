@@ -169,7 +169,8 @@ def _donor_scores(xj: np.ndarray, mj: np.ndarray, xc: np.ndarray, mc: np.ndarray
 
 
 def _pca_fill(pts: np.ndarray, long_mask: np.ndarray, src: str, rate: float,
-              labels: list[str], n_donors: int = N_DONORS) -> np.ndarray:
+              labels: list[str], n_donors: int = N_DONORS,
+              targets: np.ndarray | None = None) -> np.ndarray:
     """Fill the long gaps (long_mask) of pts (frames, n, 3) in place from correlated markers.
 
     Every sample of pts outside long_mask must be finite (measured or filled by cubic).
@@ -181,7 +182,9 @@ def _pca_fill(pts: np.ndarray, long_mask: np.ndarray, src: str, rate: float,
     all of them are measured: mean mu, eigenvectors V of the covariance (T - mu)^T (T - mu)
     (k components for PCA_VARIANCE of the variance, at most 3d); in the gap
     z = argmin |V_d z - (x_d - mu_d)| and x_j = mu_j + V_j z (Gloersen & Federolf 2016,
-    reconstruction from marker intercorrelations). Filled values are never donors. The cost of
+    reconstruction from marker intercorrelations). Filled values are never donors. ``targets``
+    (same shape as long_mask): only the gaps starting on a True sample are filled, the others
+    stay missing (a window of a take filled piece by piece). The cost of
     a gap grows with its window (about 2 WINDOW_GAPS + 1 gap lengths) times the markers, not
     with the length of the take.
     """
@@ -190,6 +193,8 @@ def _pca_fill(pts: np.ndarray, long_mask: np.ndarray, src: str, rate: float,
     fills = []
     for j in np.flatnonzero(long_mask.any(axis=0)):
         for a, b in runs(long_mask[:, j]):
+            if targets is not None and not targets[a, j]:
+                continue
             lo, hi = _window(a, b, F, rate)
             cand = np.flatnonzero(~miss[a:b].any(axis=0))
             cand = cand[cand != j]

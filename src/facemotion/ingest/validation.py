@@ -197,7 +197,12 @@ def face_spread(rec: Recording, distances: tuple[np.ndarray, np.ndarray] | None 
 def check_face_spread(rec: Recording, limits: Limits,
                       distances: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """The spread of the face (:func:`face_spread`); InputError if outside the limits."""
-    spread = face_spread(rec, distances)
+    return check_spread_value(face_spread(rec, distances), rec, limits)
+
+
+def check_spread_value(spread: float, rec, limits: Limits) -> float:
+    """A spread (:func:`face_spread`, however computed) checked against the limits; ``rec``
+    gives the source and units named in the message."""
     lo, hi = limits.face_spread_mm
     where = rec.source or "recording"
     if not np.isfinite(spread):

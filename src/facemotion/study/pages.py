@@ -48,6 +48,7 @@ EXTERNAL = {
     "bench-dense": "make bench (benchmarks/bench_dense.py)",
     "rule-times": "make bench (benchmarks/bench_study.py)",
     "restructure": "make bench (benchmarks/bench_before_after.py)",
+    "bench-stream": "make bench (benchmarks/bench_stream.py)",
 }
 FIGURE_DIR = "docs/figures"
 #: The studies the docs read, with the command that makes each.

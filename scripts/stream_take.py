@@ -1,0 +1,38 @@
+"""One take of a scattered streamed load, step 3: its rows of A on disk and their Gram."""
+
+import numpy as np
+
+from facemotion.ingest.copy_fill import parse_copy_markers
+from facemotion.ingest.scatter import load_take
+from facemotion.io.npz import npz_bytes
+from facemotion.study.adapter import run_step
+from facemotion.study.provenance import sidecar_for_existing, write_artifact
+from facemotion.study.settings import limits_from_config
+
+
+def main(sm, log, prov):
+    ds, take = sm.params.take["ds"], sm.params.take["recording"]
+    log.info("%s: streamed, memory.max_gib = %g", take, sm.params.max_gib)
+    ref = np.load(sm.input.reference)
+    gaps = sm.params.gaps
+    part = load_take(
+        take, ds["format"], sm.output.npz,
+        head_reference=ref["reference"] if "reference" in ref else None,
+        units=ds["units"], head_markers=ds["head_markers"],
+        exclude_markers=ds["exclude_markers"], include_markers=ds["include_markers"],
+        max_interp_s=gaps["max_interp_s"], long_gaps=gaps["long_gaps"],
+        neutral=sm.params.neutral, limits=limits_from_config(gaps, sm.params.checks),
+        subject_prefix=ds["subject_prefix"],
+        copy_markers=parse_copy_markers(ds["copy_markers"], "copy_markers"),
+        max_gib=sm.params.max_gib)
+    prov.inputs = [take, sm.input.reference]
+    log.info("%s (%s): %d rows x %d markers", take, sm.params.take["role"], part.train_rows,
+             len(part.labels))
+    sidecar_for_existing(sm.output.npz, "displacements", prov)
+    write_artifact(sm.output.gram, npz_bytes({"gram": part.gram,
+                                              "rows": np.array(part.train_rows),
+                                              "labels": np.array(part.labels)}),
+                   "stream_gram", prov)
+
+
+run_step(snakemake, main)  # noqa: F821

@@ -1,0 +1,309 @@
+"""The first pass of a streamed take: read in blocks, checked, kept as raw numbers on disk.
+
+Every block of frames read from the file (:func:`take_blocks`) goes through the checks of
+:func:`facemotion.ingest.validation.check_take`, on the markers the analysis uses, and is
+appended to a scratch file of float64 (frames x markers x 3, mm) that the second pass
+(:mod:`facemotion.ingest.streaming`) reads back at disk speed. What the checks need across
+blocks is kept per take, never the points themselves:
+
+* the face centre's distances: per frame, so computed per block (exact); the spread is the
+  median over frames of the per-frame median distance, kept as one number per frame and its
+  median taken at the end (exact, two-pass: (frames,) floats);
+* samples far from the centre: per sample (exact, per block);
+* jumps faster than ``max_speed_mm_s``: the speed between each marker's consecutive valid
+  samples, carried across blocks (exact). A marker with such a jump needs the whole-take test
+  (:func:`facemotion.ingest.validation._reachable`, which keeps the longest piece); that test
+  runs after the pass on that marker's column read back from the scratch file (exact);
+* whether any marker moves: each marker's first measured position, carried (exact);
+* the outlier and missing masks (frames x markers, bool) and the head markers' points, which
+  the head reference and the gap windows need.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from facemotion.errors import InputError
+from facemotion.ingest.validation import (
+    MAX_OUTLIER_FRACTION,
+    Limits,
+    TakeCheck,
+    _median_markers,
+    _reachable,
+    centre_distances,
+    check_rate,
+    check_spread_value,
+    check_take_length,
+    units_conflict,
+)
+from facemotion.io.recording import finite_samples
+
+log = logging.getLogger("facemotion")
+
+
+class WholeTake:
+    """A format without a block reader: the take read whole, then given in blocks (memory is
+    the reader's, not bounded by the stream's setting)."""
+
+    def __init__(self, path, fmt, units, subject_prefix):
+        from facemotion.io.registry import read_recording
+
+        self.rec = read_recording(path, fmt, units=units, subject_prefix=subject_prefix)
+        if self.rec.filled.any():
+            raise InputError(f"{path}: the file flags samples as filled by its producer; the "
+                             "streamed loader does not carry those flags: load it whole")
+        self.path, self.labels, self.rate = Path(path), list(self.rec.labels), self.rec.rate
+        self.n_frames, self.units = self.rec.n_frames, self.rec.units
+        self.units_source = self.rec.units_source
+
+    def blocks(self, block_bytes: int):
+        step = max(1, block_bytes // max(1, 24 * len(self.labels)))
+        for a in range(0, self.n_frames, step):
+            yield a, self.rec.points[a:a + step]
+
+
+def take_blocks(path, fmt: str, units: str | None = None, subject_prefix: str | None = None):
+    """The take's header and a ``blocks(block_bytes)`` iterator of (first frame, points)."""
+    if fmt == "trc" and not subject_prefix:
+        from facemotion.io.trc_blocks import open_trc_blocks
+
+        return open_trc_blocks(path, units)
+    return WholeTake(path, fmt, units, subject_prefix)
+
+
+@dataclass
+class TakeScan:
+    """What the first pass kept of one take (see the module notes)."""
+
+    source: str
+    labels: list[str]          # the markers used (analysed, then head markers)
+    rate: float
+    n_frames: int
+    scratch: Path              # raw float64 (frames, markers, 3), outliers not yet removed
+    outliers: np.ndarray       # (frames, markers) bool
+    missing: np.ndarray        # (frames, markers) bool, missing in the file
+    check: TakeCheck
+    head: np.ndarray | None = field(default=None)  # (frames, head, 3), outliers NaN
+
+    def points(self, a: int = 0, b: int | None = None) -> np.ndarray:
+        """Frames [a, b) from the scratch file, outliers NaN (a fresh array)."""
+        b = self.n_frames if b is None else b
+        out = read_frames(self.scratch, len(self.labels), a, b)
+        bad = self.outliers[a:b]
+        if bad.any():
+            out[bad] = np.nan
+        return out
+
+
+def read_frames(scratch: Path, n: int, a: int, b: int) -> np.ndarray:
+    """Frames [a, b) of a scratch file of (frames, n, 3) float64, by plain reads (a memory
+    map would count every page it touched in the process's resident memory)."""
+    with open(scratch, "rb") as fh:
+        fh.seek(24 * n * a)
+        out = np.fromfile(fh, dtype=np.float64, count=3 * n * (b - a))
+    return out.reshape(b - a, n, 3)
+
+
+def read_columns(scratch: Path, n: int, F: int, cols, block_frames: int) -> np.ndarray:
+    """Markers ``cols`` of every frame (F, len(cols), 3), read in blocks of frames."""
+    cols = np.asarray(cols, dtype=np.int64)
+    out = np.empty((F, cols.size, 3))
+    for a in range(0, F, block_frames):
+        b = min(F, a + block_frames)
+        out[a:b] = read_frames(scratch, n, a, b)[:, cols]
+    return out
+
+
+@dataclass
+class _Running:
+    """The per-take state the checks carry from block to block."""
+
+    n: int
+    vmax: float
+    rate: float
+    last_x: np.ndarray = None
+    last_f: np.ndarray = None
+    first: np.ndarray = None
+    moved: bool = False
+    any_ok: bool = False
+    cut: np.ndarray = None
+    far_max: np.ndarray = None
+
+    def __post_init__(self):
+        self.last_x = np.full((self.n, 3), np.nan)
+        self.last_f = np.full(self.n, -1, dtype=np.int64)
+        self.first = np.full((self.n, 3), np.nan)
+        self.cut = np.zeros(self.n, dtype=bool)
+        self.far_max = np.zeros(self.n)
+
+
+def _steps_full(x: np.ndarray, cols: np.ndarray, a: int, st: _Running) -> None:
+    """The speed cuts of markers ``cols`` valid in every frame of the block (x: their points),
+    vectorised: consecutive frames, and the link to each one's last valid sample before."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        d = np.diff(x, axis=0)
+        speed = np.sqrt(np.einsum("fnc,fnc->fn", d, d)) * st.rate
+        st.cut[cols] |= np.any(~(speed <= st.vmax), axis=0)
+        seen = st.last_f[cols] >= 0
+        if seen.any():
+            c = cols[seen]
+            link = np.linalg.norm(x[0, seen] - st.last_x[c], axis=1) * st.rate / (a - st.last_f[c])
+            st.cut[c] |= ~(link <= st.vmax)
+    st.last_x[cols] = x[-1]
+    st.last_f[cols] = a + len(x) - 1
+
+
+def _block_checks(blk: np.ndarray, a: int, st: _Running, limits: Limits):
+    """One block: (far (b, n) bool, per-frame median distance (b,) NaN where < 3 markers,
+    missing (b, n)); updates the carried state (speed cuts, first positions, moves)."""
+    dist, enough = centre_distances(SimpleNamespace(points=blk))
+    med = np.full(len(blk), np.nan)
+    if enough.any():
+        med[enough] = _median_markers(dist[enough])[:, 0]
+    d0 = np.nan_to_num(dist, nan=0.0)
+    far = d0 > limits.max_distance_mm
+    st.far_max = np.maximum(st.far_max, d0.max(axis=0))
+    ok = finite_samples(blk)
+    valid = ok & ~far
+    full = valid.all(axis=0)
+    if full.any():
+        _steps_full(blk[:, full], np.flatnonzero(full), a, st)
+    for j in np.flatnonzero(valid.any(axis=0) & ~full):
+        idx = np.flatnonzero(valid[:, j])
+        x = blk[idx, j]
+        f = a + idx
+        if st.last_f[j] >= 0:
+            x = np.concatenate([st.last_x[j][None], x])
+            f = np.concatenate([[st.last_f[j]], f])
+        if len(f) >= 2 and not st.cut[j]:
+            with np.errstate(invalid="ignore", over="ignore"):
+                speed = np.linalg.norm(np.diff(x, axis=0), axis=1) * st.rate / np.diff(f)
+            st.cut[j] = bool(np.any(~(speed <= st.vmax)))
+        st.last_x[j], st.last_f[j] = x[-1], f[-1]
+    new = ok.any(axis=0) & np.isnan(st.first[:, 0])
+    for j in np.flatnonzero(new):
+        st.first[j] = blk[int(np.argmax(ok[:, j])), j]
+    if ok.any():
+        st.any_ok = True
+        with np.errstate(invalid="ignore"):
+            st.moved = st.moved or bool(np.any(ok & (blk != st.first[None]).any(axis=2)))
+    return far, med, ~ok
+
+
+def _fast_outliers(columns: np.ndarray, cut: np.ndarray, far: np.ndarray, missing: np.ndarray,
+                   rate: float, vmax: float):
+    """The whole-take reachability test on the markers ``cut`` (with a fast jump; their
+    ``columns`` (F, len(cut), 3) read back)."""
+    F, n = far.shape
+    fast = np.zeros((F, n), dtype=bool)
+    top = np.zeros(n)
+    for k, j in enumerate(cut):
+        col = columns[:, k]
+        idx = np.flatnonzero(~missing[:, j] & ~far[:, j])
+        if idx.size < 2:
+            continue
+        keep = _reachable(col[idx], idx, rate, vmax)
+        fast[idx[~keep], j] = True
+        if not keep.all():
+            with np.errstate(invalid="ignore", over="ignore"):
+                v = np.linalg.norm(np.diff(col[idx], axis=0), axis=1) * rate / np.diff(idx)
+            top[j] = float(np.nanmax(v))
+    return fast, top
+
+
+def _notes(out, far, fast, far_max, top, labels, rate, limits) -> list[str]:
+    """The outlier notes, word for word those of
+    :func:`~facemotion.ingest.validation.find_outliers`."""
+    from facemotion.ingest.gaps import runs
+
+    notes = []
+    for j in np.flatnonzero(out.any(axis=0)):
+        first = int(np.flatnonzero(out[:, j])[0])
+        why = []
+        if far[:, j].any():
+            why.append(f"{int(far[:, j].sum())} at up to {far_max[j]:.3g} mm from the face "
+                       f"centre (limit {limits.max_distance_mm:g} mm, "
+                       f"{limits.name('max_distance_mm')})")
+        if fast[:, j].any():
+            why.append(f"{int(fast[:, j].sum())} reached at up to {top[j]:.3g} mm/s "
+                       f"(limit {limits.max_speed_mm_s:g} mm/s, {limits.name('max_speed_mm_s')})")
+        notes.append(f"marker {labels[j]!r}: {int(out[:, j].sum())} outlier sample(s) in "
+                     f"{len(runs(out[:, j]))} run(s), first at frame {first + 1} "
+                     f"(t = {first / rate:.3f} s): {'; '.join(why)}")
+    return notes
+
+
+def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
+              units: str | None = None, subject_prefix: str | None = None,
+              head_markers: list[str] = (), role: str = "",
+              block_bytes: int = 32 * 2**20) -> TakeScan:
+    """Pass 1 of one take: read in blocks, every check of ``check_take`` on the markers
+    ``used``, the raw numbers appended to ``scratch`` (see the module notes)."""
+    src = take_blocks(path, fmt, units, subject_prefix)
+    where = str(src.path)
+    rec = SimpleNamespace(source=where, rate=src.rate, n_frames=src.n_frames, units=src.units,
+                          units_source=src.units_source)
+    conflict = units_conflict(rec, units)
+    if conflict:
+        log.warning("%s: the file declares %s, the subject sheet %s: the file's units are "
+                    "used", where, src.units, units)
+    check_take_length(rec, limits, role)
+    check_rate(rec, limits)
+    missing_labels = [m for m in used if m not in src.labels]
+    if missing_labels:
+        raise InputError(f"{where}: marker {missing_labels[0]!r} is not in the data")
+    cols = np.array([src.labels.index(m) for m in used])
+    whole = np.array_equal(cols, np.arange(len(src.labels)))  # every marker: no copy
+    F, n = src.n_frames, len(used)
+    far = np.zeros((F, n), dtype=bool)
+    missing = np.zeros((F, n), dtype=bool)
+    med = np.full(F, np.nan)
+    st = _Running(n, limits.max_speed_mm_s, src.rate)
+    with open(scratch, "wb") as out:
+        for a, blk in src.blocks(block_bytes):
+            if not whole:
+                blk = np.ascontiguousarray(blk[:, cols])
+            b = a + len(blk)
+            far[a:b], med[a:b], missing[a:b] = _block_checks(blk, a, st, limits)
+            out.write(blk.reshape(-1).view(np.uint8))
+    step = max(1, block_bytes // (24 * n))
+    cut = np.flatnonzero(st.cut)
+    fast, top = _fast_outliers(read_columns(scratch, n, F, cut, step), cut, far, missing,
+                               src.rate, limits.max_speed_mm_s)
+    outliers = far | fast
+    spread = _check_spread(med, rec, limits)
+    if st.any_ok and not st.moved:
+        raise InputError(f"{where}: no marker moves in this take (every sample equals the "
+                         "marker's first): a frozen or placeholder take")
+    notes = _notes(outliers, far, fast, st.far_max, top, used, src.rate, limits)
+    measured = int((~missing).sum())
+    if measured and outliers.sum() > MAX_OUTLIER_FRACTION * measured:
+        raise InputError(f"{where}: {outliers.sum()} of the take's {measured} measured samples "
+                         f"are outliers (more than {MAX_OUTLIER_FRACTION:.0%}; first: "
+                         f"{notes[0]})")
+    if notes:
+        if limits.outliers == "error":
+            raise InputError(f"{where}: {notes[0]} ({limits.name('outliers')} is 'error')")
+        for note in notes:
+            log.warning("%s: %s; treated as gaps", where, note)
+    check = TakeCheck(outliers, src.units, src.units_source, conflict, spread)
+    scan = TakeScan(where, list(used), src.rate, F, Path(scratch), outliers, missing, check)
+    if head_markers:
+        hcols = [used.index(h) for h in head_markers]
+        h = read_columns(scratch, n, F, hcols, step)
+        h[outliers[:, hcols]] = np.nan
+        scan.head = h
+    return scan
+
+
+def _check_spread(med: np.ndarray, rec, limits: Limits) -> float:
+    """The face's spread from the per-frame medians (exact), checked as
+    :func:`~facemotion.ingest.validation.check_face_spread` checks it."""
+    enough = ~np.isnan(med)
+    spread = float(np.median(med[enough])) if enough.any() else float("nan")
+    return check_spread_value(spread, rec, limits)

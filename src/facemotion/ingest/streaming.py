@@ -1,0 +1,354 @@
+"""Takes streamed from file to the Gram matrix G = A^T A and the chunked A, in bounded memory.
+
+The same path as :func:`facemotion.ingest.loading.load_dataset` (read -> check -> remove head
+motion -> select markers -> fill gaps -> displacements), in two passes over each take, neither
+holding a whole recording:
+
+1. :func:`facemotion.ingest.stream_scan.scan_take`: the file read in blocks of lines, every
+   check of the take run per block (or, where a check needs the whole take, on what the pass
+   kept: see that module), the raw numbers of the markers used written to a scratch file;
+2. after every take's first pass (the head reference is the median over all takes): each take
+   read back from its scratch file in blocks of frames, each block aligned to the head
+   reference (per frame, as :func:`facemotion.ingest.head_motion.align_head`), filled from a
+   window around it (:mod:`facemotion.ingest.gap_windows`: the whole-take fill's values), turned
+   into displacements from the take's neutral pose, written to the displacements file and added
+   into G (the training sentences' rows: G = sum_b A_b^T A_b, the Gram route of
+   :mod:`facemotion.ranking.gram`).
+
+``max_gib`` (the workflow's setting ``memory.max_gib``) bounds the memory: it sets the
+blocks' sizes, the log says the bound and the sizes, and a gap whose fill needs a window larger
+than the bound is an error naming it.
+Not streamed (an InputError says so): sentences cut from takes (``segments``) and
+``copy_markers`` (their offsets are medians over every take), and readers without a block
+reader (formats other than TRC, and TRC with a subject prefix: read whole, then blocked).
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from facemotion.errors import InputError
+from facemotion.ingest.gap_windows import GapPlan, fill_window, plan_gaps
+from facemotion.ingest.stream_scan import TakeScan, read_columns, scan_take
+from facemotion.ingest.validation import Limits
+
+log = logging.getLogger("facemotion")
+
+#: The default memory bound (GiB) of a streamed load.
+MAX_GIB = 1.0
+#: Copies of a window's points alive at once in the second pass (points, aligned, filled,
+#: displacements, their transposes): the bound is shared out by this.
+WINDOW_COPIES = 10
+
+
+@dataclass
+class StreamedDataset:
+    """A streamed dataset: the training rows' Gram matrix, the displacements file (A on disk),
+    and the tables :func:`~facemotion.ingest.loading.load_dataset` gives."""
+
+    gram: np.ndarray             # (n, n) G = A_train^T A_train
+    train_rows: int
+    labels: list[str]
+    path: Path                   # the displacements file
+    gap_report: pd.DataFrame
+    sentences: pd.DataFrame
+    missing: np.ndarray          # (F, n) bool, missing before filling
+    filled: np.ndarray           # (F, n) bool
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Block sizes from the memory bound."""
+
+    max_gib: float
+    text_bytes: int              # text read per block in the first pass
+    frames: int                  # frames per block in the second pass
+    window_frames: int           # largest window a block may be filled from
+
+    @classmethod
+    def of(cls, max_gib: float, n_used: int) -> Budget:
+        if not np.isfinite(max_gib) or max_gib <= 0:
+            raise InputError(f"max_gib: must be positive, got {max_gib!r}")
+        total = max_gib * 2**30
+        text = int(min(64 * 2**20, max(2**20, total / 24)))
+        per_frame = 24 * max(n_used, 1) * WINDOW_COPIES
+        window = int(0.5 * total / per_frame)
+        frames = max(16, min(window // 4, 8192))
+        if window < 2 * frames:
+            raise InputError(f"max_gib = {max_gib:g}: too small for {n_used} markers "
+                             f"(a window of {window} frames)")
+        return cls(max_gib, text, frames, window)
+
+
+def _check_streamable(chosen, copy_markers) -> None:
+    if copy_markers:
+        raise InputError("copy_markers: not supported by the streamed loader (each offset is a "
+                         "median over every take); load the dataset whole")
+    cut = [s for s in chosen if not s.whole]
+    if cut:
+        raise InputError(f"{cut[0].take}: sentence {cut[0].name!r} is cut from its take; the "
+                         "streamed loader reads whole takes only; load the dataset whole")
+
+
+def _same_layout(paths: list[str], fmt: str, subject_prefix) -> list[str]:
+    """Every take's labels (headers only for TRC) equal the first take's."""
+    from facemotion.io.registry import read_labels
+
+    first = read_labels(paths[0], fmt, subject_prefix)
+    for p in paths[1:]:
+        labels = read_labels(p, fmt, subject_prefix)
+        if labels != first:
+            extra = [m for m in labels if m not in first][:5]
+            lacking = [m for m in first if m not in labels][:5]
+            raise InputError(f"{p}: marker labels differ from {paths[0]}: "
+                             + (f"not in it: {', '.join(extra)}; " if extra else "")
+                             + (f"missing: {', '.join(lacking)}" if lacking
+                                else "the same markers in another order"))
+    return first
+
+
+def reference_from_heads(heads: list[np.ndarray], rate: float, head_markers: list[str],
+                         where: str) -> np.ndarray:
+    """The head reference of :func:`facemotion.ingest.loading.remove_head_motion` from every
+    take's head-marker points (frames, head, 3; outliers NaN), in the dataset's order: the
+    median over all takes of the head aligned to the first take's first complete frame."""
+    from facemotion.ingest.head_motion import align_head
+    from facemotion.io.recording import Recording, finite_samples
+
+    if len(head_markers) < 3:
+        raise InputError(f"{where}: {len(head_markers)} head marker(s) given "
+                         f"({', '.join(head_markers)}); at least 3 are needed")
+    complete = np.flatnonzero(finite_samples(heads[0]).all(axis=1))
+    if complete.size == 0:
+        raise InputError(f"{where}: no frame has all head markers {', '.join(head_markers)}")
+    first = heads[0][complete[0]]
+    stacked = np.concatenate([
+        align_head(Recording(list(head_markers), h, rate), head_markers, reference=first)[0].points
+        for h in heads])
+    return np.nanmedian(stacked, axis=0)
+
+
+def head_reference(scans: list[TakeScan], head_markers: list[str], where: str,
+                   reference: np.ndarray | None = None):
+    """The head reference (``reference`` when given: a scattered load's, computed from all the
+    takes) and each take's head-fit residuals, as
+    :func:`facemotion.ingest.loading.remove_head_motion` computes them (the head markers only:
+    their points are kept by the first pass)."""
+    from facemotion.ingest.head_motion import align_head
+    from facemotion.io.recording import Recording
+
+    if reference is None:
+        reference = reference_from_heads([s.head for s in scans], scans[0].rate, head_markers,
+                                         where)
+    heads = [Recording(list(head_markers), s.head, s.rate, s.source) for s in scans]
+    residuals = []
+    for h in heads:
+        res = align_head(h, head_markers, reference=reference)[1]
+        residuals.append(res)
+        log.info("%s: head fit RMS residual mean %.3f mm, max %.3f mm", h.source,
+                 float(np.mean(res)), float(np.max(res)))
+    return reference, residuals
+
+
+def same_shape(scans: list[TakeScan], limits: Limits, budget: Budget,
+               max_frames: int = 200) -> list[float]:
+    """:func:`facemotion.ingest.validation.check_same_shape` with the first take's median
+    face taken exactly, column batch by column batch from its scratch file."""
+    from facemotion.ingest.validation import _fit_rms
+
+    if len(scans) < 2:
+        return [0.0]
+    s0 = scans[0]
+    n = len(s0.labels)
+    per_col = max(1, int(budget.max_gib * 2**30 / 4 / (24 * s0.n_frames)))
+    ref = np.empty((n, 3))
+    for c in range(0, n, per_col):
+        x = read_columns(s0.scratch, n, s0.n_frames, np.arange(c, min(n, c + per_col)),
+                         budget.frames)
+        x[s0.outliers[:, c:c + per_col]] = np.nan
+        x[~np.isfinite(x)] = np.nan
+        with np.errstate(all="ignore"):
+            ref[c:c + per_col] = np.nanmedian(x, axis=0) if len(x) else np.nan
+    cols = np.isfinite(ref).all(axis=1)
+    idx = np.flatnonzero(cols)
+    out = [0.0]
+    for s in scans[1:]:
+        ok = ~(s.missing | s.outliers)
+        frames = np.flatnonzero(ok[:, cols].all(axis=1))
+        if idx.size < 3 or frames.size == 0:
+            out.append(float("nan"))
+            continue
+        frames = frames[np.linspace(0, frames.size - 1, min(frames.size, max_frames)).astype(int)]
+        X = np.stack([s.points(f, f + 1)[0][cols] for f in frames])
+        proper, mirror = (float(np.min(r)) for r in _fit_rms(X, ref[cols]))
+        if mirror < 0.5 * proper:
+            raise InputError(f"{s.source}: the face is a mirror image of {s0.source}'s "
+                             f"(it fits it to {mirror:.3g} mm RMS with a reflection, "
+                             f"{proper:.3g} mm without): two axes swapped or one negated?")
+        if proper > limits.max_shape_rms_mm:
+            raise InputError(
+                f"{s.source}: the face differs from {s0.source}'s by {proper:.3g} mm RMS at "
+                f"best after a rigid fit (limit {limits.max_shape_rms_mm:g} mm, "
+                f"{limits.name('max_shape_rms_mm')}): markers relabelled, or another face?")
+        out.append(proper)
+    return out
+
+
+def _gram_add(G: np.ndarray, block: np.ndarray) -> np.ndarray:
+    """G += block^T block in place on G's upper triangle (BLAS dsyrk, no n x n temporary)."""
+    from scipy.linalg.blas import dsyrk
+
+    return dsyrk(1.0, block.T, beta=1.0, c=G, trans=0, lower=0, overwrite_c=1)
+
+
+def stream_take(scan: TakeScan, keep: list[str], plan: GapPlan, writer, G, budget: Budget,
+                *, neutral: str, head_markers: list[str], reference):
+    """Pass 2 of one take: blocks aligned, filled, as displacements to ``writer`` and (when
+    ``G`` is not None) into G. Returns the take's neutral pose (markers, 3) and G."""
+    from facemotion.ingest.head_motion import align_head
+    from facemotion.io.recording import Recording
+
+    cols = [scan.labels.index(m) for m in keep]
+    n0 = None
+    for a in range(0, scan.n_frames, budget.frames):
+        b = min(scan.n_frames, a + budget.frames)
+        lo, hi = plan.window(a, b)
+        if hi - lo > budget.window_frames:
+            raise InputError(f"{scan.source}: filling frames {a}-{b} needs a window of "
+                             f"{hi - lo} frames (a long gap's model window), more than "
+                             f"max_gib = {budget.max_gib:g} allows "
+                             f"({budget.window_frames} frames): raise max_gib")
+        pts = scan.points(lo, hi)
+        if head_markers:
+            rec = Recording(list(scan.labels), pts, scan.rate, scan.source)
+            pts = align_head(rec, head_markers, reference=reference)[0].points
+        filled = fill_window(pts[:, cols], lo, a, b, plan, scan.rate, keep, scan.source)
+        if n0 is None:
+            n0 = filled[0].copy() if neutral == "first_frame" else filled[:10].mean(axis=0)
+        block = (filled.transpose(0, 2, 1) - n0.T[None]).reshape(3 * (b - a), len(keep))
+        writer.write_rows(block)
+        if G is not None:
+            G = _gram_add(G, block)
+    return n0, G
+
+
+def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = None,
+                   head_markers=(), exclude_markers=(), include_markers=(),
+                   train: list[int], heldout: list[int], max_interp_s: float = 0.1,
+                   long_gaps: str = "pca", neutral: str = "first_frame",
+                   limits: Limits | None = None, sentences: list | None = None,
+                   subject_prefix: str | None = None, copy_markers=(),
+                   markers_named_in: str = "the subject sheet",
+                   max_gib: float = MAX_GIB,
+                   head_reference: np.ndarray | None = None) -> StreamedDataset:
+    """:func:`~facemotion.ingest.loading.load_dataset`'s dataset, streamed (module notes): A
+    written to the displacements file ``out``, the training rows' Gram returned.
+    ``head_reference``: the head markers' reference (:func:`reference_from_heads` of every
+    take of the dataset) when this call loads a part of it (one job of a scattered load)."""
+    from facemotion.ingest.loading import check_marker_lists
+    from facemotion.ingest.segments import Segment
+
+    limits = limits or Limits()
+    items = [Segment.from_param(s) for s in (sentences if sentences is not None
+                                              else recordings)]
+    chosen = [items[i] for i in list(train) + list(heldout)]
+    roles = ["train"] * len(train) + ["heldout"] * len(heldout)
+    _check_streamable(chosen, copy_markers)
+    where = chosen[0].take
+    labels = _same_layout([s.take for s in chosen], fmt, subject_prefix)
+    keep, used = check_marker_lists(labels, where, head_markers, exclude_markers,
+                                    include_markers, markers_named_in)
+    budget = Budget.of(max_gib, len(used))
+    log.info("streamed load: memory bound max_gib = %g GiB: %d MiB of text per read, %d frames per "
+             "block, windows up to %d frames", max_gib, budget.text_bytes >> 20,
+             budget.frames, budget.window_frames)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        scans = []
+        for i, (seg, role) in enumerate(zip(chosen, roles, strict=True)):
+            log.info("reading %s (%d/%d, in blocks)", seg.take, i + 1, len(chosen))
+            scans.append(scan_take(seg.take, fmt, used, limits, scratch / f"take{i}.f8",
+                                   units=units, subject_prefix=subject_prefix,
+                                   head_markers=list(head_markers), role=role,
+                                   block_bytes=budget.text_bytes))
+        return _second_pass(scans, chosen, roles, keep, used, out, budget, limits,
+                            head_markers=list(head_markers), where=where, neutral=neutral,
+                            max_interp_s=max_interp_s, long_gaps=long_gaps,
+                            reference=head_reference)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_markers,
+                 where, neutral, max_interp_s, long_gaps, reference=None) -> StreamedDataset:
+    """Checks across takes, the head reference, then every take to A and G."""
+    from types import SimpleNamespace
+
+    from facemotion.ingest.displacement_file import DisplacementsWriter
+    from facemotion.ingest.gaps import gap_report
+    from facemotion.ingest.loading import gap_report_table, sentences_table
+
+    for s in scans[1:]:
+        if s.rate != scans[0].rate:
+            raise InputError(f"{s.source}: frame rate {s.rate} Hz differs from "
+                             f"{scans[0].source} ({scans[0].rate} Hz)")
+    shape_rms = same_shape(scans, limits, budget)
+    if head_markers:
+        reference, residuals = head_reference(scans, head_markers, where, reference)
+    else:
+        reference, residuals = None, [np.zeros(s.n_frames) for s in scans]
+    dropped = [m for m in used if m not in set(keep)]
+    log.info("analysing %d of %d markers%s", len(keep), len(used),
+             f"; left out: {', '.join(dropped)}" if dropped else "")
+    cols = [used.index(m) for m in keep]
+    n = len(keep)
+    G = np.zeros((n, n), order="F")
+    writer = DisplacementsWriter(out, keep, 3 * sum(s.n_frames for s in scans))
+    neutrals, missing, reports = [], [], []
+    try:
+        for s, role in zip(scans, roles, strict=True):
+            miss = (s.missing | s.outliers)[:, cols]
+            plan = plan_gaps(miss, s.rate, max_interp_s, long_gaps, keep, s.source)
+            n0, g = stream_take(s, keep, plan, writer, G if role == "train" else None, budget,
+                                neutral=neutral, head_markers=head_markers,
+                                reference=reference)
+            G = G if g is None else g
+            neutrals.append(n0)
+            missing.append(miss)
+            methods = ["+".join(m for m, u in (("cubic", c), ("pca", p)) if u) or "none"
+                       for c, p in zip(plan.cubic, plan.pca, strict=True)]
+            rec = SimpleNamespace(filled=np.zeros_like(miss), labels=keep, n_markers=n,
+                                  n_frames=s.n_frames)
+            reports.append(gap_report(rec, filled_by_us=miss, methods=methods, missing=miss))
+        sn = np.stack(neutrals)
+        F = [s.n_frames for s in scans]
+        writer.close(sentences=np.array([c.name for c in chosen], dtype=str),
+                     row_sentence=np.repeat(np.arange(len(F)), [3 * f for f in F]),
+                     row_frame=np.concatenate([np.repeat(np.arange(f), 3) for f in F]),
+                     rate=np.array(scans[0].rate), fill_mask=np.concatenate(missing),
+                     head_residual=np.concatenate(residuals), neutral=sn.mean(axis=0),
+                     sentence_neutral=sn)
+    except BaseException:
+        writer.abort()
+        raise
+    iu = np.triu_indices(n, 1)
+    G[(iu[1], iu[0])] = G[iu]
+    checks = [s.check for s in scans]
+    recs = [SimpleNamespace(n_frames=s.n_frames, rate=s.rate) for s in scans]
+    return StreamedDataset(
+        gram=np.ascontiguousarray(G),
+        train_rows=3 * sum(s.n_frames for s, r in zip(scans, roles, strict=True)
+                           if r == "train"),
+        labels=list(keep), path=out,
+        gap_report=gap_report_table(reports, checks, cols),
+        sentences=sentences_table(chosen, roles, recs, residuals, checks, shape_rms),
+        missing=np.concatenate(missing), filled=np.concatenate(missing))

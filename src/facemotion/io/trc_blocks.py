@@ -1,0 +1,232 @@
+"""TRC files read in blocks of frames, with every check of :func:`facemotion.io.trc.read_trc`.
+
+:func:`open_trc_blocks` reads the header (lines 1-5, the same checks as ``read_trc``);
+:meth:`TrcBlocks.blocks` then yields the data lines in blocks of whole lines of about
+``block_bytes`` of text, so memory holds one block, never the take. Each block is parsed by
+pandas' C parser (quoting off, only an empty field missing); a block that is not plainly regular
+(a line with another number of fields, a line of spaces, non-ASCII text, a token the C parser
+refuses) is parsed line by line as the exact reader does, which gives its error with the file's
+line number. Across blocks the reader carries what the whole-take checks need: the last frame
+number (Frame# must increase), the first time and the frame index (the Time column on the
+1/DataRate grid, ``t0 + i / rate``, the same floats as the whole-take check), the count of data
+lines (NumFrames) and whether the last line has a line end.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from facemotion.errors import InputError, token
+from facemotion.io.base import (
+    _Irregular,
+    _line_fields,
+    _parse_chunk,
+    check_readable,
+    is_float,
+    split_tab_line,
+)
+from facemotion.io.trc import _trc_header, check_trc_fields
+
+#: Text per block (about 5,000 frames of 468 markers); the caller's memory bound sets its own.
+BLOCK_BYTES = 32 * 2**20
+
+
+@dataclass
+class _Carry:
+    frames: int = 0            # data lines read so far
+    line_no: int = 6           # file line number of the next line
+    last_frame: float = np.nan
+    last_line: int = 0
+    t0: float = np.nan
+
+
+@dataclass
+class TrcBlocks:
+    """A TRC file's header, and its data lines in blocks (:meth:`blocks`)."""
+
+    path: Path
+    rate: float
+    n_frames: int
+    labels: list[str]
+    scale: float
+    units: str
+    units_source: str
+    offset: int                # byte offset of the first data line
+
+    @property
+    def ncol(self) -> int:
+        return 2 + 3 * len(self.labels)
+
+    def blocks(self, block_bytes: int = BLOCK_BYTES) -> Iterator[tuple[int, np.ndarray]]:
+        """(index of the block's first frame, its points (frames, markers, 3) in mm), in order.
+
+        InputError as :func:`~facemotion.io.trc.read_trc` gives it: a line with too few fields
+        or text beyond them, a non-numeric value, Frame# not increasing, a Time off the grid,
+        other than NumFrames data lines, a last line without a line end."""
+        c = _Carry()
+        chunks = _line_chunks(self.path, self.offset, block_bytes)
+        while True:
+            try:
+                chunk = next(chunks)
+            except StopIteration:
+                break
+            except _CutShort:
+                raise InputError(f"{self.path}: line {c.line_no}, the last one, has no line "
+                                 "end: the file looks cut short") from None
+            values, numbers, n_lines = self._parse(chunk, c.line_no)
+            c.line_no += n_lines
+            if not len(values):
+                continue
+            if c.frames + len(values) > self.n_frames:
+                raise InputError(f"{self.path}: TRC header says NumFrames={self.n_frames} but "
+                                 f"there are more data lines (line {int(numbers[-1])})")
+            self._check_time(numbers, values[:, 0], values[:, 1], c)
+            start = c.frames
+            c.frames += len(values)
+            xyz = values[:, 2:].reshape(len(values), len(self.labels), 3)
+            if self.scale != 1.0:
+                xyz *= self.scale
+            yield start, xyz
+        if c.frames != self.n_frames:
+            raise InputError(f"{self.path}: TRC header says NumFrames={self.n_frames} but "
+                             f"there are {c.frames} data lines")
+        if c.frames == 0:
+            raise InputError(f"{self.path}: TRC file has no frames")
+
+    def _parse(self, chunk: bytes, first_line: int):
+        """(values (lines x ncol), their line numbers, lines in the chunk incl. blank)."""
+        quick = _parse_plain(chunk, self.ncol)
+        if quick is not None:
+            return quick, first_line + np.arange(len(quick)), len(quick)
+        try:
+            fields, data = _line_fields(chunk, ord("\t"), self.ncol, True)
+            vals = (_parse_chunk(chunk, b"\t", int(fields.max()), self.ncol, fields.size)
+                    if fields.size else np.empty((0, self.ncol)))
+            return vals, first_line + np.flatnonzero(data), data.size
+        except _Irregular:
+            return self._parse_exact(chunk, first_line)
+
+    def _parse_exact(self, chunk: bytes, first_line: int):
+        """The exact reader's rules on one block of lines (errors name the file's line)."""
+        try:
+            text = chunk.decode("utf-8")
+        except UnicodeDecodeError:
+            raise InputError(f"{self.path}: cannot read TRC text (UnicodeDecodeError)") from None
+        lines = text.splitlines(keepends=True)
+        rows, numbers = [], []
+        for i, line in enumerate(lines, start=first_line):
+            if line.strip(" \r\n"):
+                rows.append(split_tab_line(line))
+                numbers.append(i)
+        if not rows:
+            return np.empty((0, self.ncol)), np.zeros(0, dtype=np.int64), len(lines)
+        ncol = self.ncol
+        check_trc_fields(self.path, numbers, [len(r) for r in rows], ncol,
+                         [any(f.strip() for f in r[ncol:]) for r in rows])
+        arr = np.array([r[:ncol] for r in rows], dtype=object)
+        arr[arr == ""] = "nan"
+        try:
+            values = np.char.strip(arr.astype(str)).astype(float)
+        except ValueError:
+            bad = next((numbers[i], j, v) for i, r in enumerate(rows) for j, v in enumerate(r)
+                       if v.strip() and not is_float(v))
+            raise InputError(f"{self.path}: non-numeric value {token(bad[2])} in line "
+                             f"{bad[0]} field {bad[1] + 1}") from None
+        return values, np.asarray(numbers), len(lines)
+
+    def _check_time(self, numbers, frame_numbers, times, c: _Carry) -> None:
+        """:func:`~facemotion.io.trc.check_trc_time` across blocks (same grid, same floats)."""
+        rate = self.rate
+        bad = np.flatnonzero(~np.isfinite(frame_numbers) | ~np.isfinite(times))
+        if bad.size:
+            raise InputError(f"{self.path}: line {int(numbers[bad[0]])}: Frame# and Time must "
+                             "be numbers")
+        prev = np.concatenate([[c.last_frame], frame_numbers[:-1]])
+        steps = np.flatnonzero(~(frame_numbers > prev) & np.isfinite(prev))
+        if steps.size:
+            i = int(steps[0])
+            before = c.last_frame if i == 0 else frame_numbers[i - 1]
+            raise InputError(f"{self.path}: line {int(numbers[i])}: Frame# "
+                             f"{frame_numbers[i]:g} does not follow {before:g}")
+        if c.frames == 0:
+            c.t0 = float(times[0])
+        grid = c.t0 + np.arange(c.frames, c.frames + times.size) / rate
+        off = np.flatnonzero(np.abs(times - grid) > 0.25 / rate)
+        if off.size:
+            i = int(off[0])
+            raise InputError(f"{self.path}: line {int(numbers[i])}: Time {times[i]:.6g} s is "
+                             f"off the 1/DataRate grid (expected {grid[i]:.6g} s at {rate:g} "
+                             "Hz): a frame is missing, repeated or out of order, or DataRate "
+                             "is wrong")
+        c.last_frame = float(frame_numbers[-1])
+        c.last_line = int(numbers[-1])
+
+
+def _parse_plain(chunk: bytes, ncol: int) -> np.ndarray | None:
+    """The values of a block whose every line is a data line of exactly ``ncol`` fields, or
+    None. Checked without a pass per byte in Python or numpy: the C parser is given ``ncol``
+    columns, so a line with more fields stops it; then no line is blank (one row per line end)
+    and the tabs add up to ``ncol - 1`` per line, so no line has fewer."""
+    import csv as _csv
+
+    import pandas as pd
+
+    if not chunk.isascii() or b"\0" in chunk:
+        return None
+    lines = chunk.count(b"\n")
+    if chunk.count(b"\t") != lines * (ncol - 1):
+        return None
+    try:
+        df = pd.read_csv(io.BytesIO(chunk), sep="\t", header=None, names=range(ncol),
+                         index_col=False, dtype=np.float64, engine="c",
+                         keep_default_na=False, na_values=[""], quoting=_csv.QUOTE_NONE,
+                         skip_blank_lines=True)
+    except (ValueError, TypeError, pd.errors.ParserError):
+        return None
+    return df.to_numpy(dtype=np.float64) if len(df) == lines else None
+
+
+class _CutShort(Exception):
+    """The file's last line has no line end."""
+
+
+def _line_chunks(path: Path, offset: int, block_bytes: int) -> Iterator[bytes]:
+    """The file from ``offset`` in chunks of whole lines; _CutShort after the last whole line
+    when text without a line end follows it (the file was cut short)."""
+    carry = b""
+    with open(path, "rb") as fh:
+        fh.seek(offset)
+        while True:
+            data = fh.read(block_bytes)
+            if not data:
+                if carry.strip(b" \r\n"):
+                    raise _CutShort
+                return
+            buf = carry + data if carry else data
+            cut = buf.rfind(b"\n") + 1
+            if cut == 0:
+                carry = buf
+                continue
+            yield buf if cut == len(buf) else buf[:cut]
+            carry = buf[cut:]
+
+
+def open_trc_blocks(path, units: str | None = None) -> TrcBlocks:
+    """A TRC file's header (checked as :func:`~facemotion.io.trc.read_trc` checks it), ready to
+    give its data lines in blocks."""
+    p = check_readable(path)
+    try:
+        with open(p, "rb") as fh:
+            head = [fh.readline() for _ in range(5)]
+            offset = fh.tell()
+        lines = [h.decode("utf-8-sig" if i == 0 else "utf-8") for i, h in enumerate(head)]
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{p}: cannot read TRC text ({type(e).__name__})") from None
+    lines = [x for x in lines if x]
+    rate, n_frames, labels, scale, used, source = _trc_header(p, lines, units)
+    return TrcBlocks(p, rate, n_frames, labels, scale, used, source, offset)

@@ -1,0 +1,170 @@
+"""The streamed loader against the whole-take loader (an independent path: every take held
+whole, checked, aligned and filled at once), and its memory bound."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from facemotion.errors import InputError
+from facemotion.ingest import gap_windows
+from facemotion.ingest.displacement_file import load_displacements
+from facemotion.ingest.gap_windows import FILL_RTOL
+from facemotion.ingest.loading import load_dataset
+from facemotion.ingest.streaming import Budget, stream_dataset
+from facemotion.io.recording import Recording
+from facemotion.io.trc import write_trc
+from facemotion.ranking.qr import rank_from_gram
+
+HEAD = ["H1", "H2", "H3", "H4"]
+RATE = 60.0
+MAX_GIB = 0.05
+BLOCK = Budget.of(MAX_GIB, 44).frames  # frames per block of the streamed loader
+
+
+def _take(seed: int, frames: int, gaps: bool) -> Recording:
+    """40 face markers moved by 5 smooth sources, 4 head markers, rigid head motion, noise;
+    with ``gaps``: short gaps, 1-s gaps, gaps at both ends, a far sample and a fast jump."""
+    face = np.random.default_rng(0).normal(0.0, 35.0, (40, 3))  # one face, every take
+    rng = np.random.default_rng(seed)
+    head = np.array([[60.0, 0, 40], [-60, 0, 40], [0, 70, 60], [0, -20, 90]])
+    t = np.arange(frames) / RATE
+    src = np.sin(2 * np.pi * rng.uniform(0.3, 3, 5)[None] * t[:, None] + rng.uniform(0, 6, 5))
+    fields = rng.normal(0, 2.0, (5, 40, 3))
+    pts = np.concatenate([face[None] + np.tensordot(src, fields, 1),
+                          np.broadcast_to(head, (frames, 4, 3))], axis=1)
+    pts = pts + rng.normal(0, 0.05, pts.shape)
+    ang = 0.02 * np.sin(2 * np.pi * 0.4 * t)
+    c, s = np.cos(ang), np.sin(ang)
+    R = np.zeros((frames, 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    pts = np.einsum("fij,fnj->fni", R, pts) + 2.0 * np.sin(t)[:, None, None]
+    if gaps:
+        for _ in range(40):
+            j, a = rng.integers(0, 40), rng.integers(1, frames - 10)
+            pts[a:a + rng.integers(1, 5), j] = np.nan
+        for j, a in ((3, 300), (11, 900), (12, 905)):
+            pts[a:a + 60, j] = np.nan
+        pts[:7, 20] = np.nan
+        pts[-4:, 21] = np.nan
+        pts[500, 30] += 400.0       # far from the face centre
+        pts[700:705, 31] += 30.0    # a jump at 1,800 mm/s and back
+        edge = 3000 // BLOCK * BLOCK
+        pts[edge - 1:edge + 1, 15] = np.nan  # a short gap across two blocks
+    labels = [f"M{j:02d}" for j in range(40)] + HEAD
+    return Recording(labels, pts, RATE)
+
+
+@pytest.fixture(scope="module")
+def takes(tmp_path_factory):
+    d = tmp_path_factory.mktemp("stream")
+    paths = []
+    for i, (frames, gaps) in enumerate(((4000, True), (700, False), (3100, True))):
+        p = d / f"take{i}.trc"
+        write_trc(p, _take(i, frames, gaps))
+        paths.append(str(p))
+    return d, paths
+
+
+KW = dict(head_markers=HEAD, exclude_markers=HEAD, train=[0, 1], heldout=[2], units="mm")
+
+
+def _both(d, paths, max_gib=MAX_GIB, **kw):
+    whole = load_dataset(paths, "trc", **{**KW, **kw})
+    streamed = stream_dataset(paths, "trc", d / "A.npz", **{**KW, **kw}, max_gib=max_gib)
+    return whole, streamed, load_displacements(d / "A.npz")
+
+
+def test_streamed_dataset_equals_the_whole_take_load(takes):
+    d, paths = takes
+    assert BLOCK < 1000  # the takes are filled window by window
+    whole, s, D = _both(d, paths)
+    A = whole.displacements.A
+    np.testing.assert_allclose(D.A, A, rtol=0, atol=FILL_RTOL * np.abs(A).max())
+    for name in ("row_sentence", "row_frame", "fill_mask", "head_residual", "neutral"):
+        np.testing.assert_array_equal(getattr(D, name), getattr(whole.displacements, name))
+    pd.testing.assert_frame_equal(s.gap_report, whole.gap_report)
+    pd.testing.assert_frame_equal(s.sentences, whole.sentences, check_exact=False, rtol=1e-12)
+    assert whole.gap_report["fill_method"].str.contains("pca").any()
+    assert whole.gap_report["outlier_frames"].sum() == 2 * (1 + 5)
+    # the Gram of the training rows, and the ranking made from it
+    tr = whole.train.A
+    G = tr.T @ tr
+    assert s.train_rows == tr.shape[0]
+    np.testing.assert_allclose(s.gram, G, rtol=0, atol=1e-12 * np.abs(G).max())
+    r_whole = rank_from_gram(G, tr.shape[0], whole.displacements.labels)
+    r_stream = rank_from_gram(s.gram, s.train_rows, s.labels)
+    assert list(r_stream.order) == list(r_whole.order)
+    np.testing.assert_allclose(r_stream.r, r_whole.r, rtol=1e-9)
+
+
+def test_a_spline_window_too_narrow_is_caught_by_the_tolerance(takes, monkeypatch):
+    """The comparison above can fail: with 2 knots either side of a short gap the window
+    fill departs from the whole-take spline by far more than FILL_RTOL."""
+    d, paths = takes
+    monkeypatch.setattr(gap_windows, "SPLINE_KNOTS", 2)
+    whole, _, D = _both(d, paths)
+    A = whole.displacements.A
+    assert np.abs(D.A - A).max() > 100 * FILL_RTOL * np.abs(A).max()
+
+
+def test_a_window_beyond_the_memory_bound_is_an_error_naming_the_setting(takes):
+    d, paths = takes
+    with pytest.raises(InputError, match=r"take0\.trc: filling frames .* raise max_gib"):
+        stream_dataset(paths, "trc", d / "B.npz", **KW, max_gib=0.02)
+    assert not (d / "B.npz").exists()
+    assert not [p for p in d.iterdir() if p.name.startswith(".B.npz")]
+
+
+def test_what_the_streamed_loader_does_not_take_is_an_error(takes):
+    d, paths = takes
+    with pytest.raises(InputError, match="copy_markers: not supported by the streamed loader"):
+        stream_dataset(paths, "trc", d / "C.npz", **KW, copy_markers=[("M01", "M02")])
+    cut = [{"name": "a", "take": paths[0], "start_s": 1.0, "end_s": 5.0}]
+    with pytest.raises(InputError, match="cut from its take"):
+        stream_dataset(paths, "trc", d / "C.npz", **{**KW, "train": [0], "heldout": []},
+                       sentences=cut)
+    with pytest.raises(InputError, match="max_gib: must be positive"):
+        stream_dataset(paths, "trc", d / "C.npz", **KW, max_gib=0.0)
+
+
+def test_the_checks_give_the_whole_take_errors(tmp_path):
+    """A take with most samples far from the face: the same error by both loaders."""
+    rec = _take(5, 400, False)
+    rec.points[:, :30] *= 20.0
+    p = tmp_path / "far.trc"
+    write_trc(p, rec)
+    kw = {**KW, "train": [0], "heldout": []}
+    with pytest.raises(InputError) as whole:
+        load_dataset([str(p)], "trc", **kw)
+    with pytest.raises(InputError) as streamed:
+        stream_dataset([str(p)], "trc", tmp_path / "A.npz", **kw, max_gib=MAX_GIB)
+    assert str(streamed.value) == str(whole.value)
+
+
+def test_a_scattered_load_gathers_the_single_jobs_gram_and_pivots(takes):
+    """One job per take (head points, reference, take), then the sum: the single job's G to
+    round-off, the same pivots; each take's part of A is the single job's rows."""
+    from facemotion.ingest import scatter
+
+    d, paths = takes
+    roles = ["train", "train", "heldout"]
+    used = [f"M{j:02d}" for j in range(40)] + HEAD
+    scans = [scatter.scan_heads(p, "trc", used, HEAD, units="mm") for p in paths]
+    ref = scatter.gather_reference([h for h, _ in scans], [r for _, r in scans], HEAD, paths[0])
+    opts = dict(units="mm", head_markers=HEAD, exclude_markers=HEAD, max_gib=MAX_GIB)
+    parts = [scatter.load_take(p, "trc", d / f"part{i}.npz", head_reference=ref, **opts)
+             for i, p in enumerate(paths)]
+    G = scatter.gather_gram([s.gram for s in parts], roles)
+    single = stream_dataset(paths, "trc", d / "single.npz", **KW, max_gib=MAX_GIB)
+    np.testing.assert_allclose(G, single.gram, rtol=0, atol=1e-13 * np.abs(G).max())
+    assert not np.array_equal(G, parts[0].gram)  # the sum, not one take
+    r_g = rank_from_gram(G, sum(s.train_rows for s in parts[:2]), parts[0].labels)
+    r_s = rank_from_gram(single.gram, single.train_rows, single.labels)
+    assert list(r_g.order) == list(r_s.order)
+    A = load_displacements(d / "single.npz").A
+    rows = np.cumsum([0] + [s.train_rows for s in parts])
+    for i in range(3):
+        np.testing.assert_array_equal(load_displacements(d / f"part{i}.npz").A,
+                                      A[rows[i]:rows[i + 1]])
+    with pytest.raises(InputError, match="no training take"):
+        scatter.gather_gram([s.gram for s in parts], ["heldout"] * 3)

@@ -1,0 +1,44 @@
+"""The held-out error curve from blocks of rows against the whole-matrix curve, and its median
+against numpy's median of the residual distances computed directly (an independent route:
+least squares for X, no R^-1 update)."""
+
+import numpy as np
+import pytest
+
+from facemotion.ranking.routes import rank_markers
+from facemotion.regions.prediction import error_curve
+from facemotion.regions.streamed_curve import streamed_error_curve
+
+
+def _data(frames_held: int):
+    rng = np.random.default_rng(frames_held)
+    n = 30
+    S = rng.normal(size=(3 * (2000 + frames_held), 5))
+    A = S @ rng.normal(size=(5, n)) + 0.05 * rng.normal(size=(S.shape[0], n))
+    labels = [f"M{j:02d}" for j in range(n)]
+    return A[:6000], A[6000:], labels
+
+
+@pytest.mark.parametrize("frames_held,block", [(401, 37), (400, 400), (250, 1)])
+def test_streamed_curve_equals_the_whole_matrix_curve(frames_held, block):
+    train, held, labels = _data(frames_held)
+    rk = rank_markers(train, labels, method="gram")
+    whole = error_curve(rk, held, labels, k_max=8)
+    blocks = lambda: (held[a:a + 3 * block] for a in range(0, held.shape[0], 3 * block))  # noqa: E731
+    streamed = streamed_error_curve(rk, blocks, labels, k_max=8)
+    assert list(streamed["main_markers"]) == list(whole["main_markers"])
+    # the residuals of a block agree with the whole matrix's to round-off (BLAS blocks its
+    # sums by the rows it is given); the selections (median, max) are exact on them
+    for col in ("mean_abs_error_mm", "rms_error_mm", "rel_error_per_marker", "rel_error_pooled",
+                "max_abs_error_mm", "median_abs_error_mm"):
+        np.testing.assert_allclose(streamed[col], whole[col], rtol=1e-12)
+    if block == frames_held:  # one block: the very same arithmetic, the very same numbers
+        assert list(streamed["median_abs_error_mm"]) == list(whole["median_abs_error_mm"])
+    # the median at k = 3 from the residuals of an independent least-squares fit
+    order = [labels.index(m) for m in rk.labels_in_order]
+    main, sec = order[:3], order[3:]
+    X = np.linalg.lstsq(train[:, main], train[:, sec], rcond=None)[0]
+    E = held[:, sec] - held[:, main] @ X
+    dist = np.sqrt((E.reshape(-1, 3, len(sec)) ** 2).sum(axis=1))
+    np.testing.assert_allclose(streamed["median_abs_error_mm"][2], np.median(dist), rtol=1e-9)
+    assert streamed["median_abs_error_mm"][2] != pytest.approx(np.mean(dist), rel=1e-3)
