@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError, token
+from facemotion.errors import InputError, MissingFileError, token
 from facemotion.io.recording import Recording
 
 KINDS = ("textgrid", "events", "tsv")
@@ -146,7 +146,7 @@ def read_textgrid_tier(path, tier: str) -> list[tuple[float, float, str]]:
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{p}: TextGrid file not found")
+        raise MissingFileError(f"{p}: TextGrid file not found")
     try:
         tg = textgrid.openTextgrid(str(p), includeEmptyIntervals=False)
     except Exception as e:  # praatio raises several kinds on malformed files
@@ -187,7 +187,7 @@ def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{p}: file not found")
+        raise MissingFileError(f"{p}: file not found")
     try:
         c = ezc3d.c3d(str(p))
     except Exception as e:
@@ -261,7 +261,7 @@ def read_interval_table(path) -> list[tuple[int, str, float, float, str]]:
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{p}: segments table not found")
+        raise MissingFileError(f"{p}: segments table not found")
     try:
         df = pd.read_csv(p, sep="\t", dtype=str, keep_default_na=False, comment="#")
     except Exception as e:
