@@ -76,6 +76,9 @@ _LAZY = {
     "LoadedDataset": ("facemotion.ingest.loading", "LoadedDataset"),
     "MarkerRanking": ("facemotion.ranking.result", "MarkerRanking"),
     "InputError": ("facemotion.errors", "InputError"),
+    "design": ("facemotion.regions.marker_set", "design"),
+    "reconstruct": ("facemotion.regions.marker_set", "reconstruct"),
+    "MarkerSetDesign": ("facemotion.regions.design", "MarkerSetDesign"),
 }
 _SUBMODULES = ("lips",)
 
@@ -83,7 +86,7 @@ __all__ = [  # the same names as _LAZY and _SUBMODULES (a literal list, for lint
     "read", "load", "align_head", "fill_gaps", "gap_report", "displacement_matrix",
     "rank_markers", "epsilon_rank", "fit_regions", "predict", "error_curve", "sentence_sweep",
     "MarkerSelector", "selection_table", "Recording", "Displacements", "LoadedDataset",
-    "MarkerRanking", "InputError", "lips",
+    "MarkerRanking", "InputError", "lips", "design", "reconstruct", "MarkerSetDesign",
 ]
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
@@ -100,6 +103,8 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
     from facemotion.ranking.result import MarkerRanking, selection_table
     from facemotion.ranking.routes import rank_markers
     from facemotion.ranking.stability import sentence_sweep
+    from facemotion.regions.design import MarkerSetDesign
+    from facemotion.regions.marker_set import design, reconstruct
     from facemotion.regions.prediction import error_curve, predict
     from facemotion.regions.prediction import fit_coefficients as fit_regions
     from facemotion.regions.selector import MarkerSelector

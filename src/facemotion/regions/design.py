@@ -284,7 +284,8 @@ class MarkerSetDesign:
         try:
             d = json.loads(p.read_text(encoding="utf-8"))
         except (UnicodeDecodeError, json.JSONDecodeError) as e:
-            raise InputError(f"{p}: not a marker-set file (not JSON: {e.__class__.__name__})")
+            raise InputError(f"{p}: not a marker-set file (not JSON: {e.__class__.__name__})"
+                             ) from None
         if not isinstance(d, dict) or d.get("format") != FILE_FORMAT:
             raise InputError(f"{p}: not a marker-set file (format is not {FILE_FORMAT!r})")
         if d.get("version") != FILE_VERSION:

@@ -83,10 +83,13 @@ def _lab_frame(points: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.matmul(points - t[:, None, :], R)
 
 
-def reconstruct(rec: Recording, marker_set: MarkerSetDesign) -> Recording:
+def reconstruct(rec: Recording, marker_set: MarkerSetDesign, keep_measured: bool = True
+                ) -> Recording:
     """Every marker of ``marker_set`` (and its head markers) in the take ``rec``, which holds at
     least the placed and the head markers (module notes).  Predicted samples are flagged in
-    ``filled``; frames where a placed marker is missing stay missing for the predicted ones."""
+    ``filled``; frames where a placed marker is missing stay missing for the predicted ones.
+    keep_measured: a predicted marker present in ``rec`` keeps its measured samples (only its
+    missing ones are predicted); False predicts all of them (to compare with the measured)."""
     from facemotion.ingest.head_motion import align_head_transforms
 
     ms = marker_set
@@ -113,7 +116,8 @@ def reconstruct(rec: Recording, marker_set: MarkerSetDesign) -> Recording:
     out = np.full((rec.n_frames, len(labels), 3), np.nan)
     flag = np.zeros((rec.n_frames, len(labels)), dtype=bool)
     for j, m in enumerate(labels):
-        measured = rec.points[:, rec.index(m)] if m in rec.labels else out[:, j]
+        present = m in rec.labels and (keep_measured or m not in sec)
+        measured = rec.points[:, rec.index(m)] if present else out[:, j]
         out[:, j] = measured
         if m in sec:
             gap = ~finite_samples(measured)
