@@ -11,7 +11,7 @@ From a file to the paper's quantities::
     import facemotion as fm
 
     take = fm.read("take.c3d")                      # labels, points (frames, markers, 3) mm
-    data = fm.load(["s1.c3d", "s2.c3d"], heldout=[1],
+    data = fm.load(["s1.c3d", "s2.c3d"], heldout_sentences=[2],
                    head_markers=["ForeHead_M", "NoseTop", "Leye_Inside"],
                    exclude_markers=["ForeHead_M", "NoseTop", "Leye_Inside"])
     ranking = fm.rank_markers(data.train)           # A P = Q R (Sec. II.C)

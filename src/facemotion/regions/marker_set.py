@@ -48,15 +48,16 @@ def _rest_pose(path: str, fmt: str | None, head: list[str], labels: list[str],
 def design(paths, *, head_markers=(), drop_markers=(), target_mm: float = 1.0,
            k: int | None = None, force=(), exclude=(), symmetric: bool = False,
            subjects=None, fmt: str | None = None, resamples: int = 1000, level: float = 0.95,
-           seed: int = 0, **options) -> MarkerSetDesign:
+           seed: int = 0, progress: bool = False, **options) -> MarkerSetDesign:
     """Recommend a marker set from pilot takes (``facemotion.design``).
 
     paths: the pilot takes (one sentence each); head_markers: >= 3 markers that move with the
     head only (removed as rigid motion, placed in every take, never part of k); drop_markers:
     markers left out altogether; subjects: each take's subject, when the takes come from
     several (resampled too in the interval); target_mm, k, force, exclude, symmetric,
-    resamples, level, seed: :func:`~facemotion.regions.design.design_markers`; options: the
-    loading settings of :func:`facemotion.load` (units, max_interp_s, long_gaps, neutral).
+    resamples, level, seed: :func:`~facemotion.regions.design.design_markers`; progress: a
+    bar on stderr while the takes are read (on a terminal); options: the loading settings of
+    :func:`facemotion.load` (units, max_interp_s, long_gaps, neutral).
     """
     from facemotion.ingest.loading import load
 
@@ -66,7 +67,7 @@ def design(paths, *, head_markers=(), drop_markers=(), target_mm: float = 1.0,
         raise InputError(f"head markers: {len(head)} given ({', '.join(head)}); at least 3")
     data = load(paths, fmt=fmt, head_markers=head,
                 exclude_markers=list(dict.fromkeys(head + [str(m) for m in drop_markers])),
-                **options)
+                progress=progress, **options)
     disp = data.displacements
     out = design_markers(disp, target_mm=target_mm, k=k, force=force, exclude=exclude,
                          symmetric=symmetric, groups=subjects, resamples=resamples,
