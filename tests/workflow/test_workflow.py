@@ -299,6 +299,11 @@ def test_terminal_output_is_short_and_ends_with_a_summary(smoke_runs):
     sel = pd.read_csv(a / "results" / "smoke" / "tables" / "selected_markers.tsv", sep="\t",
                       dtype=str)
     assert " ".join(sel["S1"][:5]) in summary
+    # which sentences trained and which were held out, from the dataset's own table
+    sent = pd.read_csv(a / "results" / "smoke" / "S1" / "data" / "sentences.tsv", sep="\t")
+    n_train, n_held = (sent["role"] == "train").sum(), (sent["role"] == "heldout").sum()
+    assert f"  S1: trained on {n_train} ({sent['sentence'].iloc[0]}" in summary
+    assert f"; held out {n_held} (" in summary
     assert "--report results/smoke/report.html" in tail
 
 

@@ -378,7 +378,17 @@ def summary_inputs(wildcards):
         "lips": [f"<results>/lips/{ls}/reconstruction.tsv" for ls in LIP_SUBJECTS],
         "rank_summary": "<results>/tables/rank_summary.tsv",
         "selected": "<results>/tables/selected_markers.tsv",
+        "sentences": per_dataset("<results>/{dataset}/data/sentences.tsv", DATASETS),
     }
+
+
+def builtin_lip_subjects():
+    """In a study of the user's own sheet, the lip subjects that are the built-in virtual lip
+    talker (the summary does not present them as the user's results)."""
+    if not _OWN_SHEET:
+        return []
+    subjects = config["lips"]["subjects"]
+    return [ls for ls in LIP_SUBJECTS if subjects[ls].get("source") == "virtual"]
 
 
 def all_outputs():
