@@ -17,6 +17,7 @@ include: "workflow/rules/tables.smk"
 include: "workflow/rules/lips.smk"
 include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/compare.smk"
+include: "workflow/rules/design.smk"
 
 
 # One job per dataset (per virtual subject, lip subject, k, sweep point) through wildcards;

@@ -209,7 +209,7 @@ def test_a_new_subject_runs_only_its_own_jobs_and_the_aggregations(smoke_runs, t
     assert per_rule == dict.fromkeys(
         ["simulate_subject", "load_dataset", "rank_markers", "find_redundant_markers",
          "sweep_sentences", "compare_subsets", "fit_regions", "evaluate_heldout",
-         "animate_heldout"], 1), per_rule
+         "animate_heldout", "design_markers"], 1), per_rule
     assert {rule for rule, _ in jobs} & AGGREGATIONS == AGGREGATIONS
 
 

@@ -337,8 +337,8 @@ def _interval(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]
             np.quantile(values, 1.0 - alpha, axis=0, method="higher"))
 
 
-def _choose_k(disp, target_mm, k, force, exclude, groups, resamples, level, seed
-              ) -> tuple[int, KForError | None]:
+def _choose_k(disp, target_mm, k, force, exclude, groups, resamples, level, seed,
+              on_unreached: str = "raise") -> tuple[int, KForError | None]:
     n = len(disp.labels)
     if k is not None:
         if isinstance(k, bool) or not isinstance(k, int | np.integer) or not 1 <= k < n:
@@ -347,6 +347,8 @@ def _choose_k(disp, target_mm, k, force, exclude, groups, resamples, level, seed
     curve = cross_validated_errors(disp, force, exclude)
     kft = k_for_error(curve, target_mm, resamples=resamples, level=level, seed=seed,
                       groups=groups)
+    if kft.k is None and on_unreached == "largest":
+        return max(kft.k_last, len(force)), kft
     if kft.k is None:
         raise InputError(f"target error: {kft.describe()} of held-out error in the pilot "
                          "sentences; give a larger target or a number of markers (k)")
@@ -357,13 +359,18 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
                    force: Sequence[str] = (), exclude: Sequence[str] = (),
                    symmetric: bool = False, groups: Sequence[str] | None = None,
                    resamples: int = DEFAULT_RESAMPLES, level: float = DEFAULT_LEVEL,
-                   seed: int = 0, max_subsets: int = MAX_SUBSETS) -> MarkerSetDesign:
+                   seed: int = 0, max_subsets: int = MAX_SUBSETS,
+                   on_unreached: str = "raise") -> MarkerSetDesign:
     """Recommend k markers to place from the pilot ``Displacements`` (module notes).
 
     target_mm: the mean held-out error to reach (ignored when ``k`` is given); force / exclude:
     markers that must / must not be placed; symmetric: left-right symmetric sets only; groups:
     each sentence's subject (pilot sentences from several subjects), for a bootstrap over
-    subjects and sentences.  resamples, level, seed: the bootstrap's."""
+    subjects and sentences.  resamples, level, seed: the bootstrap's.  on_unreached: when
+    no k reaches the target, "raise" (InputError) or "largest" (the largest k evaluated,
+    ``settings['target_reached']`` False)."""
+    if on_unreached not in ("raise", "largest"):
+        raise InputError(f"on_unreached: 'raise' or 'largest', got {on_unreached!r}")
     labels = list(disp.labels)
     force = _labels_in("force", force, labels)
     exclude = _labels_in("exclude", exclude, labels)
@@ -372,7 +379,8 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
         groups = [str(g) for g in groups]
         if len(groups) != S:
             raise InputError(f"groups: {len(groups)} subjects given for {S} sentences")
-    k, kft = _choose_k(disp, target_mm, k, force, exclude, groups, resamples, level, seed)
+    k, kft = _choose_k(disp, target_mm, k, force, exclude, groups, resamples, level, seed,
+                       on_unreached)
     if len(force) > k:
         raise InputError(f"force: {len(force)} forced markers do not fit in k = {k}")
     rows, n = disp.A.shape
@@ -399,7 +407,8 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
     settings = {"target_mm": None if kft is None else float(target_mm), "force": force,
                 "exclude": exclude, "symmetric": bool(symmetric), "resamples": int(resamples),
                 "seed": int(seed), "folds": len(sentence_folds(S)),
-                "resampled": "subjects and sentences" if groups else "sentences"}
+                "resampled": "subjects and sentences" if groups else "sentences",
+                "target_reached": None if kft is None else kft.k is not None}
     return MarkerSetDesign(
         k=len(subset), selected=main, labels=labels, coef=pd.DataFrame(X, main, rest),
         expected_error_mm=overall[0], error_low_mm=overall[1], error_high_mm=overall[2],

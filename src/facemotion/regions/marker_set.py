@@ -144,9 +144,14 @@ def reconstruction_table(rec: Recording, marker_set: MarkerSetDesign) -> pd.Data
 def protocol_text(ms: MarkerSetDesign) -> str:
     """A short paragraph a lab can paste into its protocol (numbers from the design)."""
     pct = f"{ms.level:.0%}"
-    how = (f"the smallest number whose expected mean held-out error is at most "
-           f"{ms.settings['target_mm']:g} mm" if ms.settings.get("target_mm") else
-           "a number chosen in advance")
+    if not ms.settings.get("target_mm"):
+        how = "a number chosen in advance"
+    elif ms.settings.get("target_reached") is False:
+        how = (f"no number of markers reached the target of {ms.settings['target_mm']:g} mm "
+               "mean held-out error; this is the largest number evaluated")
+    else:
+        how = (f"the smallest number whose expected mean held-out error is at most "
+               f"{ms.settings['target_mm']:g} mm")
     head = (f" Head markers {', '.join(ms.head_markers)} are placed too, to remove the head "
             "motion." if ms.head_markers else "")
     method = ms.candidates.loc[ms.candidates["recommended"], "method"].iloc[0]
