@@ -20,9 +20,9 @@ $(BIN)/python:
 	$(BIN)/pip install --quiet --upgrade pip
 
 # The library, the workflow extra, the dev tools and the optional bridges the tests exercise
-# (scikit-learn, pyomeca, kineticstoolkit), at the exact versions of constraints.txt
+# (scikit-learn, pyomeca, kineticstoolkit, plotly), at the exact versions of constraints.txt
 # (pyproject.toml only gives ranges).
-EXTRAS := workflow,dev,sklearn,pyomeca,kineticstoolkit
+EXTRAS := workflow,dev,sklearn,pyomeca,kineticstoolkit,plotly
 $(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/python
 	$(BIN)/pip install --quiet -c constraints.txt -e '.[$(EXTRAS)]'
 	touch $@

@@ -39,6 +39,7 @@ localrules:
     compare_with_papers,
     summarise_study,
     write_manifest,
+    render_face_page,
 
 
 rule all:

@@ -409,6 +409,7 @@ def all_outputs():
         if config["animation"]["enabled"]:
             out += [f"<results>/{d}/anim/heldout_still.png"]
     out += ["<results>/tables/selected_markers.tsv", "<results>/figures/r_values.png"]
+    out += ["<results>/figures/face_3d.html"]
     if EVAL_DATASETS:
         out += ["<results>/figures/error_curves.png"]
     for ls in LIP_SUBJECTS:

@@ -13,7 +13,7 @@ rule design_markers:
             "png",
             "<results>/{dataset}/design/marker_set_plot",
             caption="marker_set",
-            category="5. Marker-set design",
+            category="7. Marker-set design",
             subcategory="{dataset}",
         ),
     log:
@@ -36,3 +36,37 @@ rule design_markers:
         "design_markers {wildcards.dataset}: the markers to place for the target error"
     script:
         "../../scripts/design_markers.py"
+
+
+rule render_face_page:
+    input:
+        npz=per_dataset("<results>/{dataset}/data/displacements.npz", DATASETS),
+        coefficients=per_dataset(
+            f"<results>/{{dataset}}/fit/coefficients_k{config['fit']['k'][0]}.tsv",
+            DATASETS,
+        ),
+        r_values=per_dataset("<results>/{dataset}/qr/r_values.tsv", DATASETS),
+        markers=per_dataset("<results>/{dataset}/design/markers.tsv", DATASETS),
+        marker_set=per_dataset("<results>/{dataset}/design/marker_set.json", DATASETS),
+    output:
+        page=report(
+            "<results>/figures/face_3d.html",
+            caption="../report/face_3d.rst",
+            category="0. Summary",
+        ),
+        page_meta=sidecar("<results>/figures/face_3d.html"),
+    log:
+        "<results>/logs/render_face_page.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=5,
+    params:
+        study=STUDY,
+        labels=[DATASETS[d].label for d in DATASETS],
+    message:
+        "render_face_page: the study's interactive 3-D page, {output.page}"
+    script:
+        "../../scripts/render_face_page.py"
