@@ -408,6 +408,10 @@ def docs(check: bool, results: str, repo: str, shared_data: str | None) -> None:
 @click.option("--subject", "subjects", multiple=True, callback=_labels, metavar="S1,S2,...",
               help="Each take's subject, in the order of FILES, when the takes come from "
                    "several subjects (the interval then resamples subjects too).")
+@click.option("--label-map", "label_map", default=None, type=click.Path(dir_okay=False),
+              help="TSV with columns subject, label, common: each subject's marker labels -> "
+                   "common names, for subjects recorded with differently named markers "
+                   "(needs --subject; marker options then use the common names).")
 @click.option("--resamples", type=click.IntRange(min=1), default=1000, show_default=True,
               help="Bootstrap resamples of the intervals.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Bootstrap seed.")
@@ -418,8 +422,8 @@ def docs(check: bool, results: str, repo: str, shared_data: str | None) -> None:
 @FORMAT
 @UNITS
 @_output_forms
-def design(files, head, target_mm, k, force, exclude, drop, symmetric, subjects, resamples,
-           seed, out_dir, fmt, units, as_json, as_tsv) -> None:
+def design(files, head, target_mm, k, force, exclude, drop, symmetric, subjects, label_map,
+           resamples, seed, out_dir, fmt, units, as_json, as_tsv) -> None:
     """Recommend k markers to place, from pilot takes: the fewest that predict the others
     within the target mean held-out error (or a given k), with the expected error of every
     marker and a bootstrap interval, and the gap to greedy and exhaustive selection.
@@ -429,7 +433,7 @@ def design(files, head, target_mm, k, force, exclude, drop, symmetric, subjects,
     protocol text to --out; prints the set (text, --json or --tsv).
     """
     from facemotion.regions.marker_set import design as run_design
-    from facemotion.regions.marker_set import write_outputs
+    from facemotion.regions.marker_set import read_label_map, write_outputs
 
     if subjects and len(subjects) != len(files):
         raise click.BadParameter(f"{len(subjects)} subjects for {len(files)} files",
@@ -437,8 +441,9 @@ def design(files, head, target_mm, k, force, exclude, drop, symmetric, subjects,
     options = {"units": units} if units else {}
     ms = run_design(list(files), head_markers=head, drop_markers=drop, target_mm=target_mm,
                     k=k, force=force, exclude=exclude, symmetric=symmetric,
-                    subjects=list(subjects) or None, fmt=fmt, resamples=resamples, seed=seed,
-                    progress=True, **options)
+                    subjects=list(subjects) or None,
+                    label_map=read_label_map(label_map) if label_map else None, fmt=fmt,
+                    resamples=resamples, seed=seed, progress=True, **options)
     written = write_outputs(ms, out_dir)
     click.echo("facemotion: wrote " + ", ".join(str(p) for p in written), err=True)
     _emit(_finite(ms.to_dict()) if as_json else None,

@@ -153,3 +153,51 @@ def _rotation(a):
     Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
     Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
     return Rz @ Ry @ Rx
+
+
+def test_subjects_with_differently_named_markers_pool_through_a_label_map(tmp_path):
+    """Subject B names every marker "B<label>" and lacks marker 57: with the label map the
+    two subjects pool on the 56 markers both have, the interval resamples subjects, and the
+    set equals the one designed from the same data under shared names."""
+    paths, subjects, same = [], [], []
+    for sub, seed in (("A", 1), ("B", 2)):
+        s = simulate_subject("S2a", seed=seed, n_sentences=6, occlusions=False)
+        for r in s.recordings:
+            rec = r
+            if sub == "B":
+                keep = [m for m in r.labels if m != "57"]
+                rec = r.select(keep)
+                rec = Recording([f"B{m}" for m in keep], rec.points, rec.rate, rec.source)
+            paths.append(tmp_path / f"{sub}_{r.source}.c3d")
+            write_c3d(paths[-1], rec)
+            same.append(tmp_path / f"same_{sub}_{r.source}.c3d")
+            write_c3d(same[-1], r.select([m for m in r.labels if m != "57"]))
+            subjects.append(sub)
+    table = tmp_path / "labels.tsv"
+    rows = ["subject\tlabel\tcommon"] + [f"B\tB{m}\t{m}" for m in
+                                         [str(j) for j in range(1, 57)] + HEAD.split(",")]
+    table.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "pooled"
+    proc = run_cli("design", *paths, "--head", HEAD, "--k", "4", "--subject",
+                   ",".join(subjects), "--label-map", table, "--resamples", "200", "--out",
+                   out, "--json")
+    assert proc.returncode == 0, proc.stderr
+    pooled = json.loads(proc.stdout)
+    assert "57" not in pooled["labels"] and len(pooled["labels"]) == 56
+    assert pooled["settings"]["not_in_every_subject"] == ["57"]
+    assert pooled["subjects"] == ["A", "B"]
+    assert pooled["settings"]["resampled"] == "subjects and sentences"
+    assert pooled["sentences"][0].startswith("A/") and pooled["sentences"][-1].startswith("B/")
+    ref = run_cli("design", *same, "--head", HEAD, "--k", "4", "--subject", ",".join(subjects),
+                  "--resamples", "200", "--out", tmp_path / "same", "--json")
+    assert ref.returncode == 0, ref.stderr
+    reference = json.loads(ref.stdout)
+    assert pooled["selected"] == reference["selected"]
+    # loaded per subject or in one call: the same numbers to float32 rounding of the C3D data
+    assert pooled["expected_error_mm"] == pytest.approx(reference["expected_error_mm"],
+                                                        rel=1e-6)
+    bad = tmp_path / "bad.tsv"
+    bad.write_text("subject\tlabel\nB\tB1\n")
+    proc = run_cli("design", *paths, "--head", HEAD, "--k", "4", "--subject",
+                   ",".join(subjects), "--label-map", bad)
+    assert proc.returncode == 1 and "label map lacks column(s) common" in proc.stderr

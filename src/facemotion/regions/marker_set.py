@@ -45,16 +45,87 @@ def _rest_pose(path: str, fmt: str | None, head: list[str], labels: list[str],
     return pts[idx[:len(head)]], pts[idx[len(head):]]
 
 
+def read_label_map(path) -> dict[str, dict[str, str]]:
+    """A label-mapping table (TSV with columns subject, label, common): for each subject, its
+    own marker labels -> the common names the subjects are pooled under."""
+    from facemotion.errors import MissingFileError
+
+    p = Path(path)
+    if not p.is_file():
+        raise MissingFileError(f"{p}: label map not found")
+    table = pd.read_csv(p, sep="\t", dtype=str, keep_default_na=False)
+    missing = [c for c in ("subject", "label", "common") if c not in table.columns]
+    if missing:
+        raise InputError(f"{p}: label map lacks column(s) {', '.join(missing)} (needs "
+                         "subject, label, common)")
+    out: dict[str, dict[str, str]] = {}
+    for i, row in enumerate(table.itertuples(index=False), start=2):
+        m = out.setdefault(row.subject, {})
+        if row.label in m:
+            raise InputError(f"{p}: line {i}: subject {row.subject!r} maps {row.label!r} twice")
+        if row.common in m.values():
+            raise InputError(f"{p}: line {i}: subject {row.subject!r} maps two labels to "
+                             f"{row.common!r}")
+        m[row.label] = row.common
+    return out
+
+
+def _pooled(paths, subjects, label_map, head, drop, fmt, progress, options):
+    """Each subject's takes loaded under its own labels, renamed to the common ones, and
+    stacked on the markers every subject has: (Displacements, groups, first subject's head
+    markers and markers in its own names, markers left out)."""
+    from facemotion.ingest.displacements import Displacements
+    from facemotion.ingest.loading import load
+
+    if subjects is None or len(subjects) != len(paths):
+        raise InputError("label map: needs each take's subject (subjects=, one per take)")
+    parts = []
+    for sub in dict.fromkeys(subjects):
+        own = label_map.get(sub, {})
+        back = {c: lab for lab, c in own.items()}
+        h = [back.get(m, m) for m in head]
+        d = load([p for p, s in zip(paths, subjects, strict=True) if s == sub], fmt=fmt,
+                 head_markers=h, exclude_markers=list(dict.fromkeys(
+                     h + [back.get(m, m) for m in drop])), progress=progress,
+                 **options).displacements
+        parts.append((sub, d, [own.get(m, m) for m in d.labels], h))
+    common = [m for m in parts[0][2] if all(m in p[2] for p in parts[1:])]
+    if len(common) < 2:
+        raise InputError(f"label map: the subjects share {len(common)} marker name(s); map "
+                         "their labels to common names")
+    rates = {p[1].rate for p in parts}
+    if len(rates) > 1:
+        raise InputError(f"subjects: different frame rates {sorted(rates)} Hz; resample first")
+    cols = [[p[2].index(m) for m in common] for p in parts]
+    offsets = np.cumsum([0] + [len(p[1].sentences) for p in parts])
+    d = Displacements(
+        np.vstack([p[1].A[:, c] for p, c in zip(parts, cols, strict=True)]), common,
+        [f"{p[0]}/{s}" for p in parts for s in p[1].sentences],
+        np.concatenate([p[1].row_sentence + o for p, o in zip(parts, offsets, strict=False)]),
+        np.concatenate([p[1].row_frame for p in parts]), parts[0][1].rate,
+        np.vstack([p[1].fill_mask[:, c] for p, c in zip(parts, cols, strict=True)]),
+        np.concatenate([p[1].head_residual for p in parts]), parts[0][1].neutral[cols[0]])
+    groups = [p[0] for p in parts for _ in p[1].sentences]
+    left_out = sorted({m for p in parts for m in p[2]} - set(common))
+    first_own = [parts[0][1].labels[j] for j in cols[0]]
+    return d, groups, parts[0][3], first_own, left_out
+
+
 def design(paths, *, head_markers=(), drop_markers=(), target_mm: float = 1.0,
            k: int | None = None, force=(), exclude=(), symmetric: bool = False,
-           subjects=None, fmt: str | None = None, resamples: int = 1000, level: float = 0.95,
-           seed: int = 0, progress: bool = False, **options) -> MarkerSetDesign:
+           subjects=None, label_map: dict | None = None, fmt: str | None = None,
+           resamples: int = 1000, level: float = 0.95, seed: int = 0,
+           progress: bool = False, **options) -> MarkerSetDesign:
     """Recommend a marker set from pilot takes (``facemotion.design``).
 
     paths: the pilot takes (one sentence each); head_markers: >= 3 markers that move with the
     head only (removed as rigid motion, placed in every take, never part of k); drop_markers:
     markers left out altogether; subjects: each take's subject, when the takes come from
-    several (resampled too in the interval); target_mm, k, force, exclude, symmetric,
+    several (resampled too in the interval); label_map: {subject: {its label: common name}}
+    (:func:`read_label_map`) for subjects recorded with differently named markers: each
+    subject is loaded under its own names and the subjects are pooled on the common names
+    every one of them has (marker lists here are in common names); target_mm, k, force,
+    exclude, symmetric,
     resamples, level, seed: :func:`~facemotion.regions.design.design_markers`; progress: a
     bar on stderr while the takes are read (on a terminal); options: the loading settings of
     :func:`facemotion.load` (units, max_interp_s, long_gaps, neutral).
@@ -65,15 +136,23 @@ def design(paths, *, head_markers=(), drop_markers=(), target_mm: float = 1.0,
     head = [str(h) for h in head_markers]
     if head and len(head) < 3:
         raise InputError(f"head markers: {len(head)} given ({', '.join(head)}); at least 3")
-    data = load(paths, fmt=fmt, head_markers=head,
-                exclude_markers=list(dict.fromkeys(head + [str(m) for m in drop_markers])),
-                progress=progress, **options)
-    disp = data.displacements
+    drop = [str(m) for m in drop_markers]
+    left_out: list[str] = []
+    if label_map:
+        disp, groups, head0, own0, left_out = _pooled(paths, subjects, label_map, head, drop,
+                                                      fmt, progress, options)
+    else:
+        disp = load(paths, fmt=fmt, head_markers=head,
+                    exclude_markers=list(dict.fromkeys(head + drop)), progress=progress,
+                    **options).displacements
+        groups, head0, own0 = subjects, head, None
     out = design_markers(disp, target_mm=target_mm, k=k, force=force, exclude=exclude,
-                         symmetric=symmetric, groups=subjects, resamples=resamples,
+                         symmetric=symmetric, groups=groups, resamples=resamples,
                          level=level, seed=seed)
-    ref, rest = _rest_pose(paths[0], fmt, head, out.labels, options.get("units"))
+    ref, rest = _rest_pose(paths[0], fmt, head0, own0 or out.labels, options.get("units"))
     out.head_markers, out.head_reference, out.neutral = head, ref if head else None, rest
+    if left_out:
+        out.settings["not_in_every_subject"] = left_out
     out.settings.update(takes=[Path(p).name for p in paths], drop=[str(m) for m in drop_markers],
                         loading={k: v for k, v in options.items()})
     return out
