@@ -14,6 +14,7 @@ from facemotion.io.recording import Recording
 from facemotion.regions.design import (
     MarkerSetDesign,
     bootstrap_weights,
+    expanded_alpha,
     design_markers,
     mirror_pairs,
     subset_errors,
@@ -195,3 +196,11 @@ def test_saved_file_round_trip(pilot, tmp_path):
     (tmp_path / "bad.json").write_text('{"format": "other"}')
     with pytest.raises(InputError, match="not a marker-set file"):
         MarkerSetDesign.load(tmp_path / "bad.json")
+
+
+def test_expanded_percentile_tail():
+    # n = 12, 90 %: z = sqrt(12 / 11) t_{11, 0.95} = 1.04447 * 1.79588 = 1.87575
+    assert expanded_alpha(0.9, 12) == pytest.approx(scipy.stats.norm.cdf(-1.87575), rel=1e-4)
+    assert expanded_alpha(0.95, 100000) == pytest.approx(0.025, rel=1e-3)   # the plain one
+    assert expanded_alpha(0.95, 5) < expanded_alpha(0.95, 20) < 0.025
+    assert expanded_alpha(0.95, 1) == pytest.approx(0.025)

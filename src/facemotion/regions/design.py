@@ -18,8 +18,9 @@ question "which k markers do I glue on the next speakers?":
    candidate with the smallest held-out error, so it is never worse than greedy selection on
    this measure; the others are reported with their gap to it.
 3. **Expected error per marker, with an interval.**  Each predicted marker's mean 3-D held-out
-   error and the pooled mean, with percentile-bootstrap intervals over sentences (and over
-   subjects first when the sentences come from several, :func:`bootstrap_weights`).
+   error and the pooled mean, with bootstrap intervals over sentences (and over subjects
+   first when the sentences come from several, :func:`bootstrap_weights`): the expanded
+   percentile interval (:func:`expanded_alpha`), as a pilot has few sentences.
 
 ``symmetric`` restricts the candidates to left-right symmetric sets: markers are paired by their
 labels (:func:`mirror_pairs`), and greedy selection adds a pair, or a midline marker, at a time.
@@ -331,8 +332,22 @@ def _candidates(disp, k: int, force, exclude, symmetric: bool, max_subsets: int
     return out
 
 
-def _interval(values: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
+def expanded_alpha(level: float, units: int) -> float:
+    """The tail probability of the expanded percentile interval (Hesterberg 2015, "What
+    teachers should know about the bootstrap", Am. Stat. 69:371, Sec. 4.2): the percentile
+    interval at Phi(-sqrt(n / (n - 1)) t_{n-1, 1 - alpha/2}) instead of alpha/2, which
+    corrects the plain percentile interval's narrowness with few resampled units n."""
+    import scipy.stats
+
     alpha = (1.0 - level) / 2.0
+    if units < 2:
+        return alpha
+    z = math.sqrt(units / (units - 1)) * scipy.stats.t.ppf(1.0 - alpha, units - 1)
+    return float(scipy.stats.norm.cdf(-z))
+
+
+def _interval(values: np.ndarray, level: float, units: int) -> tuple[np.ndarray, np.ndarray]:
+    alpha = expanded_alpha(level, units)
     return (np.quantile(values, alpha, axis=0, method="lower"),
             np.quantile(values, 1.0 - alpha, axis=0, method="higher"))
 
@@ -399,7 +414,7 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
     cand["recommended"] = np.arange(len(cand)) == best
     subset, sums, frames = errs[cand["method"].iloc[best]]
     W = bootstrap_weights(S, resamples, np.random.default_rng(seed), groups)
-    per, overall = _per_marker(labels, subset, sums, frames, W, level)
+    per, overall = _per_marker(labels, subset, sums, frames, W, level, groups)
     main = [labels[j] for j in subset]
     rest = [m for m in labels if m not in set(main)]
     X = np.linalg.lstsq(disp.A[:, subset], disp.A[:, [labels.index(m) for m in rest]],
@@ -418,15 +433,18 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
         rate=float(disp.rate), settings=settings)
 
 
-def _per_marker(labels, subset, sums, frames, W, level) -> tuple[pd.DataFrame, tuple]:
+def _per_marker(labels, subset, sums, frames, W, level, groups=None
+                ) -> tuple[pd.DataFrame, tuple]:
     """Each marker's expected held-out error (mean 3-D distance, mm) with its bootstrap
-    interval, and the same for the pooled mean over the predicted markers."""
+    interval (expanded percentile over the resampled units: sentences, or subjects with
+    ``groups``), and the same for the pooled mean over the predicted markers."""
     n, k = len(labels), len(subset)
     mean = sums.sum(axis=0) / frames.sum()
     boot = (W @ sums) / (W @ frames)[:, None]   # (resamples, n)
-    lo, hi = _interval(boot, level)
+    units = W.shape[1] if groups is None else len(set(groups))
+    lo, hi = _interval(boot, level, units)
     pooled = (W @ sums.sum(axis=1)) / ((W @ frames) * (n - k))
-    plo, phi = _interval(pooled, level)
+    plo, phi = _interval(pooled, level, units)
     order = {j: i + 1 for i, j in enumerate(subset)}
     per = pd.DataFrame({
         "marker": labels,
