@@ -14,8 +14,8 @@ from facemotion.io.recording import Recording
 from facemotion.regions.design import (
     MarkerSetDesign,
     bootstrap_weights,
-    expanded_alpha,
     design_markers,
+    expanded_alpha,
     mirror_pairs,
     subset_errors,
     symmetric_greedy,
