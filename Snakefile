@@ -36,6 +36,7 @@ localrules:
     summarise_heldout,
     summarise_sweep,
     summarise_talkers,
+    summarise_lip_seeds,
     compare_with_papers,
     summarise_study,
     write_manifest,

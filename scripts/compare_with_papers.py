@@ -9,7 +9,7 @@ from facemotion.study.provenance import save_figure, write_table
 
 def main(sm, log, prov):
     paths = {}
-    for key in ("selected", "rank_summary", "lip_reconstruction", "lip_counts"):
+    for key in ("selected", "rank_summary", "lip_reconstruction", "lip_counts", "lip_seeds"):
         if key in sm.input.keys():
             paths[key] = sm.input[key]
     for label, d in sm.params.datasets.items():

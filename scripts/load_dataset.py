@@ -20,7 +20,7 @@ def main(sm, log, prov):
         train=[i - 1 for i in ds["train"]], heldout=[i - 1 for i in ds["heldout"]],
         max_interp_s=gaps["max_interp_s"], long_gaps=gaps["long_gaps"],
         neutral=sm.params.neutral, limits=limits_from_config(gaps, sm.params.checks),
-        sentences=ds["segments"], subject_prefix=ds["subject_prefix"],
+        sentences=ds["segments"], subject_prefix=ds["subject_prefix"], rate=ds.get("rate"),
         copy_markers=parse_copy_markers(ds["copy_markers"], "copy_markers"))
     prov.inputs = list(prov.inputs) + recordings
     d = loaded.displacements

@@ -7,7 +7,12 @@ from facemotion.ingest.displacements import split_roles
 from facemotion.ingest.noise import estimate_noise
 from facemotion.papers.lucero_munhall import EPSILON_MM
 from facemotion.plots.rank import plot_r_values
-from facemotion.ranking.epsilon_rank import epsilon_rank_table, noise_epsilon
+from facemotion.ranking.epsilon_rank import (
+    epsilon_rank_table,
+    noise_epsilon,
+    remainder_norms,
+    singular_values,
+)
 from facemotion.ranking.routes import rank_for_study, ranking_summary, route_accuracy
 from facemotion.regions.target import NOISE_LEVEL, headline_facts
 from facemotion.study.adapter import run_step
@@ -21,6 +26,9 @@ def main(sm, log, prov):
     ranking = rank_for_study(train.A, train.labels, method=p.method, k_max=p.k_max)
     norm = p.r_normalisation
     table = ranking.to_frame(norm)  # |r_kk| in the three readings of Fig. 2, and the chosen
+    # beside them sigma_k and ||R22||_2 before pivot k (L&M Sec. III: sigma_{k+1} <= ||R22||_2)
+    table["singular_value"] = singular_values(ranking)
+    table["remainder_norm"] = remainder_norms(ranking)
     write_table(table, sm.output.r_values, "r_values", prov)
     write_table(table.head(p.top_n), sm.output.r_values_top, "r_values", prov)
     summary = ranking_summary(ranking, int(np.count_nonzero(~train.A.any(axis=1))))

@@ -20,7 +20,7 @@ def main(sm, log, prov):
                        n_replicates=p.replicates, seed=p.seed)
     write_table(result.settling, sm.output.stability, "stability", prov)
     write_table(result.agreement, sm.output.stability_agreement, "stability", prov)
-    fig = plot_sentence_sweep(sweep)
+    fig = plot_sentence_sweep(sweep, settling=result.settling, tolerance=p.settle_tolerance)
     save_figure(fig, figure_files(sm.output, "png"), "sentence_sweep", prov)
 
 

@@ -86,3 +86,16 @@ def assert_laid_out(fig):
         if id(t) not in inside:
             for frame in frames:
                 assert not e.overlaps(frame), f"covers a panel: {t.get_text()!r}"
+
+
+def untitled_subject(meta: dict) -> str | None:
+    """The dataset (or lip subject) a per-dataset figure's sidecar says it shows, when none of
+    its recorded titles names it; None when titled (or not a per-dataset figure)."""
+    if not meta["schema_id"].startswith("facemotion/figure/"):
+        return None
+    wc, params = meta["config"].get("wildcards", {}), meta["config"].get("params", {})
+    name = (params.get("label") or wc["dataset"]) if "dataset" in wc else \
+        wc.get("lip_subject") or wc.get("subject")
+    if not name:
+        return None
+    return None if any(name in t for t in meta.get("titles", [])) else name

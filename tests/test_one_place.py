@@ -58,7 +58,7 @@ def test_the_command_lines_help_lists_the_suffixes_and_units():
         text = " ".join(CliRunner().invoke(cli.cli, [name, "--help"]).output.split())
         for choice in FORMAT_NAMES:
             assert choice in text, (name, choice)
-        suffixes = re.search(r"Default: from the file suffix \(([^)]*)\)", text).group(1)
+        suffixes = re.search(r"else from the file suffix \(([^)]*)\)", text).group(1)
         assert suffixes.split(", ") == list(SUFFIX_FORMATS)
         units = re.search(r"Units \(([^)]*)\) of a file", text).group(1)
         assert units.split(", ") == list(UNITS)

@@ -14,10 +14,10 @@ From a file to the paper's quantities::
     data = fm.load(["s1.c3d", "s2.c3d"], heldout_sentences=[2],
                    head_markers=["ForeHead_M", "NoseTop", "Leye_Inside"],
                    exclude_markers=["ForeHead_M", "NoseTop", "Leye_Inside"])
-    ranking = fm.rank_markers(data.train)           # A P = Q R (Sec. II.C)
+    ranking = fm.rank_markers(data.train)           # A P = Q R (Sec. III)
     ranking.to_frame()                              # pivot order and r values
     fm.epsilon_rank(ranking, [0.5])                 # epsilon-rank (Sec. III)
-    X = fm.fit_regions(ranking, k=10)               # X = R11^-1 R12 (Sec. II.D)
+    X = fm.fit_regions(ranking, k=10)               # X = R11^-1 R12 (Sec. III, eq. 4)
     fm.error_curve(ranking, data.heldout.A, data.heldout.labels)   # Fig. 10
 
 The single steps are there too: `align_head` (rigid head motion), `fill_gaps`,

@@ -14,6 +14,7 @@ stderr and a non-zero exit status (2 for a wrong command line, 1 for bad input).
 from __future__ import annotations
 
 import importlib.util
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -49,10 +50,28 @@ def _numbers(ctx, param, value) -> list[float]:
     return out
 
 
+def _tolerances(ctx, param, value) -> list[float]:
+    """Tolerances (mm): positive finite numbers, checked before anything is printed."""
+    out = _numbers(ctx, param, value)
+    for x in out:
+        if not math.isfinite(x) or x <= 0:
+            raise click.BadParameter(f"{x:g} is not a positive tolerance (mm)")
+    return out
+
+
 FORMAT = click.option(
     "--format", "fmt", type=click.Choice(FORMAT_NAMES, case_sensitive=False),
-    default=None, help=f"File format. Default: from the file suffix "
-                       f"({', '.join(SUFFIX_FORMATS)}).")
+    default=None, help="File format. Default: from the file's content (C3D header, TRC "
+                       "PathFileType, Motive 'Format Version', QTM header, OpenFace or wide "
+                       f"CSV columns), else from the file suffix ({', '.join(SUFFIX_FORMATS)}).")
+SUBJECT_PREFIX = click.option(
+    "--subject-prefix", default=None, metavar="NAME",
+    help="The subject to read from a file whose labels are 'Subject:Marker' with several "
+         "subjects (the sheet's subject_prefix); its markers lose the prefix.")
+RATE = click.option(
+    "--rate", type=float, default=None, metavar="HZ",
+    help="Declared frame rate (the sheet's rate): replaces the rate an OpenFace CSV's "
+         "timestamps imply; any other file must state this rate itself.")
 UNITS = click.option(
     "--units", default=None, metavar="UNIT",
     help=f"Units ({', '.join(UNIT_NAMES)}) of a file that does not state its own (a CSV file, "
@@ -154,20 +173,22 @@ def cli() -> None:
 @click.argument("file", type=click.Path(dir_okay=False))
 @FORMAT
 @UNITS
+@SUBJECT_PREFIX
+@RATE
 @click.option("--markers/--no-markers", default=True, show_default=True,
               help="List every marker with its missing samples and gaps.")
 @_output_forms
-def info(file: str, fmt: str | None, units: str | None, markers: bool, as_json: bool = False,
-         as_tsv: bool = False) -> None:
+def info(file: str, fmt: str | None, units: str | None, subject_prefix: str | None,
+         rate: float | None, markers: bool, as_json: bool = False, as_tsv: bool = False) -> None:
     """What a recording holds: markers, frame rate, units, frames and gaps (missing samples).
 
-    FILE is one take (C3D, TRC or CSV). Coordinates are converted to mm on reading; the units
-    line says what the file declared.
+    FILE is one take in any format of --format. Coordinates are converted to mm on reading;
+    the units line says what the file declared.
     """
     from facemotion.ingest.gaps import gap_report
     from facemotion.io.registry import read_recording
 
-    rec = read_recording(file, fmt, units=units)
+    rec = read_recording(file, fmt, units=units, subject_prefix=subject_prefix, rate=rate)
     report = gap_report(rec)
     n_missing = int(report["missing_frames"].sum())
     total = rec.n_frames * rec.n_markers
@@ -209,7 +230,7 @@ def info(file: str, fmt: str | None, units: str | None, markers: bool, as_json: 
 @click.option("--include", "include", multiple=True, callback=_labels, metavar="A,B,...",
               help="Rank only these markers (comma-separated). Default: every marker of the "
                    "file not excluded.")
-@click.option("--tolerance", "tolerances", multiple=True, callback=_numbers,
+@click.option("--tolerance", "tolerances", multiple=True, callback=_tolerances,
               metavar="MM[,MM...]",
               help="Tolerances epsilon (mm) of the epsilon-rank, comma-separated. Default: "
                    + ", ".join(f"{t:g}" for t in DEFAULT_TOLERANCES_MM) + " (the study's).")
@@ -236,11 +257,14 @@ def info(file: str, fmt: str | None, units: str | None, markers: bool, as_json: 
                    "study's (first_frame).")
 @FORMAT
 @UNITS
+@SUBJECT_PREFIX
+@RATE
 @_output_forms
 def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, method,
-         max_interp_s, long_gaps, neutral, fmt, units, as_json=False, as_tsv=False) -> None:
+         max_interp_s, long_gaps, neutral, fmt, units, subject_prefix, rate, as_json=False,
+         as_tsv=False) -> None:
     """Rank the markers of one or more takes by QR with column pivoting (Lucero & Munhall
-    2008, Sec. II.C) and give the epsilon-rank (Sec. III).
+    2008, Sec. III) and give the epsilon-rank (Sec. III, eq. 1).
 
     FILES are the takes (sentences) of one talker, stacked into one displacement matrix A as in
     the study (all of them train). Prints the first pivots, the r values in pivot order
@@ -252,7 +276,8 @@ def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, me
     from facemotion.ranking.routes import rank_markers
 
     options = {k: v for k, v in (("units", units), ("max_interp_s", max_interp_s),
-                                 ("long_gaps", long_gaps), ("neutral", neutral))
+                                 ("long_gaps", long_gaps), ("neutral", neutral),
+                                 ("subject_prefix", subject_prefix), ("rate", rate))
                if v is not None}
     data = load(list(files), fmt=fmt, head_markers=head, exclude_markers=exclude,
                 include_markers=include, progress=True, **options)

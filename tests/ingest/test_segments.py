@@ -272,8 +272,8 @@ def test_event_interval_beyond_the_take_and_no_events(tmp_path):
     rec, _, _ = _planted_take()  # 4 sentences + padding, < 3 s at 60 Hz
     take = tmp_path / "long.c3d"
     _c3d_with_events(take, rec, [("Start", 0.5), ("End", 9.0)])
-    with pytest.raises(InputError, match=r"row 2.*long.c3d: interval 0.5-9 s ends beyond the "
-                                         r"take"):
+    with pytest.raises(InputError, match=r"row 2.*long.c3d: event 2 'End' at 9 s is outside "
+                                         r"the take \(0-"):
         segment_subject("events:Start,End", [str(take)], "c3d", tmp_path, "row 2")
     plain = tmp_path / "plain.c3d"
     write_c3d(plain, rec)

@@ -81,7 +81,8 @@ def test_qtm_zero_samples_are_missing_and_units_are_mm(tmp_path):
     ({"NO_OF_MARKERS": "5"}, "NO_OF_MARKERS is 5 but MARKER_NAMES lists 4 names"),
     ({"NO_OF_FRAMES": "41"}, "NO_OF_FRAMES is 41 but there are 40 data lines"),
     ({"FREQUENCY": "EXT"}, "FREQUENCY 'EXT' is not a number"),
-    ({"DATA_INCLUDED": "2D"}, "holds 2D data; export 3D trajectories"),
+    ({"DATA_INCLUDED": "2D"}, "holds '2D' data, no 3D markers; export 3D trajectories"),
+    ({"DATA_INCLUDED": "6D"}, "a QTM 6D export .rigid bodies., no markers"),
     ({"FREQUENCY": None}, "QTM TSV header has no FREQUENCY value"),
 ])
 def test_qtm_header_errors(tmp_path, overrides, match):
@@ -103,7 +104,7 @@ def test_qtm_data_errors(tmp_path):
     fields = lines[20].split("\t")
     fields[5] = "12.3x"
     lines[20] = "\t".join(fields)
-    (tmp_path / "t.tsv").write_text("\n".join(lines))
+    (tmp_path / "t.tsv").write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"t.tsv, line 21: non-numeric value '12.3x' in field 6"):
         read_qualisys_tsv(tmp_path / "t.tsv")
     (tmp_path / "x.tsv").write_text("Frame\tTime\n1\t0\n")
@@ -112,7 +113,7 @@ def test_qtm_data_errors(tmp_path):
     write_qtm(tmp_path / "w.tsv", labels, pts, column_header=False)
     lines = (tmp_path / "w.tsv").read_text().splitlines()
     lines[-40] = "\t".join(lines[-40].split("\t")[:-1])
-    (tmp_path / "w.tsv").write_text("\n".join(lines))
+    (tmp_path / "w.tsv").write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"13 fields, expected 12 .* or 14 \(with frame"):
         read_qualisys_tsv(tmp_path / "w.tsv")
 
@@ -236,7 +237,7 @@ def test_motive_several_assets_need_a_choice(tmp_path):
 # ----------------------------------------------------------------------------- OpenFace CSV
 
 def write_openface(path, pts, *, fps=30.0, success=None, face_ids=None, frames=None,
-                   times=None):
+                   times=None, confidence=None):
     """OpenFace 2.2 FeatureExtraction layout (', ' separated header, 68 landmarks)."""
     F, n, _ = pts.shape
     success = np.ones(F, int) if success is None else success
@@ -249,7 +250,8 @@ def write_openface(path, pts, *, fps=30.0, success=None, face_ids=None, frames=N
         t = f / fps if times is None else times[f]
         frame = f + 1 if frames is None else frames[f]
         row = [str(frame), str(0 if face_ids is None else face_ids[f]), f"{t:.3f}",
-               "0.98" if success[f] else "0", str(int(success[f]))]
+               (f"{confidence[f]:g}" if confidence is not None
+                else "0.98" if success[f] else "0"), str(int(success[f]))]
         row += ["0.1", "0.2", "-0.9", "12.5", "-3.1", "410.0"]
         row += ["320.5"] * n + ["240.5"] * n
         row += [repr(float(pts[f, k, a])) for a in range(3) for k in range(n)]
@@ -260,7 +262,8 @@ def write_openface(path, pts, *, fps=30.0, success=None, face_ids=None, frames=N
 
 def test_openface_landmarks_with_failed_frames_missing(tmp_path):
     rng = np.random.default_rng(2)
-    pts = rng.normal(size=(90, 68, 3)) * 30 + [0, 0, 450]
+    # a face: landmarks spread over ~100 mm, moving a fraction of a mm per frame
+    pts = rng.normal(size=(1, 68, 3)) * 30 + [0, 0, 450] + rng.normal(size=(90, 68, 3)) * 0.2
     success = np.ones(90, int)
     success[[5, 6, 40]] = 0
     write_openface(tmp_path / "clip.csv", pts, success=success)
@@ -272,7 +275,9 @@ def test_openface_landmarks_with_failed_frames_missing(tmp_path):
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({"frames": [1, 2, 3, 5, 6, 7]}, "frame numbers jump from 3 to 5 at line 5"),
+    ({"frames": [1, 2, 3, 5, 6, 7]}, "line 5: frame 5 does not follow 3"),
+    ({"frames": [1, 2, 3, 3, 4, 5]}, "line 5: frame 3 does not follow 3"),
+    ({"frames": [1, 2, 4, 3, 5, 6]}, "line 4: frame 4 does not follow 2"),
     ({"times": [0, 0.033, 0.067, 0.2, 0.233, 0.267]}, "timestamps are not uniformly sampled"),
     ({"face_ids": [0, 1, 0, 1, 0, 1]}, r"several faces \(face_id 0, 1\)"),
     ({"success": np.array([1, 1, 2, 1, 1, 1])}, "success must be 0 or 1, got 2 at line 4"),

@@ -146,3 +146,44 @@ def test_reduced_stiffness_is_positive_definite_and_factors_scale():
 def test_bad_material_settings(kw):
     with pytest.raises(InputError, match=next(iter(kw))):
         assemble_stiffness(parametric_lip_mesh(), **kw)
+
+
+def test_four_grounded_nodes_leave_600_free_dof_and_a_nonsingular_k_s():
+    # the paper's P has "all 600 columns" (Sec. 4.1): 612 DOF less 4 grounded nodes (12 DOF)
+    mesh = parametric_lip_mesh()
+    K = assemble_stiffness(mesh).toarray()
+    K_s, dofs = reduced_stiffness(assemble_stiffness(mesh), mesh)
+    assert K_s.shape == (600, 600) and len(dofs) == 600
+    dense = K_s.toarray()
+    # full rank by an SVD, positive definite by a Cholesky factorisation
+    assert np.linalg.matrix_rank(dense) == 600
+    np.linalg.cholesky(dense)
+    # every zero-energy mode of the ungrounded K moves a grounded DOF, so grounding removes it
+    n0, _ = _zero_modes(K, 1e-11)
+    w, v = np.linalg.eigh(K)
+    null = v[:, np.argsort(np.abs(w))[:n0]]
+    fixed_dofs = np.setdiff1d(np.arange(612), dofs)
+    assert np.linalg.matrix_rank(null[fixed_dofs], tol=1e-8) == n0
+    # and a load is carried: K_s u = f solved sparse equals the dense solve
+    f = np.random.default_rng(1).normal(size=600)
+    import scipy.sparse.linalg as spla
+    np.testing.assert_allclose(spla.spsolve(K_s, f), np.linalg.solve(dense, f), rtol=1e-8)
+
+
+def test_ungrounded_strip_leaves_k_singular():
+    # the check above must be able to fail: with nothing grounded K is singular
+    mesh = parametric_lip_mesh()
+    mesh.fixed = np.array([], dtype=int)
+    K_s, _ = reduced_stiffness(assemble_stiffness(mesh), mesh)
+    assert np.linalg.matrix_rank(K_s.toarray()) < 612
+
+
+@pytest.mark.parametrize("grounded", [0, 1, 3, 12])
+def test_grounded_nodes_must_be_symmetric_and_fit_the_row(grounded):
+    with pytest.raises(InputError, match="grounded"):
+        parametric_lip_mesh(grounded=grounded)
+
+
+def test_whole_far_row_can_still_be_grounded():
+    mesh = parametric_lip_mesh(grounded=11)
+    assert len(mesh.fixed) == 11 and 3 * len(mesh.free_nodes) == 579

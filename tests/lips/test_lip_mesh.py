@@ -28,7 +28,13 @@ def test_parametric_mesh_size_roles_and_geometry():
     m = parametric_lip_mesh()
     # the paper's counts (Sec. 2.1): 336 faces, 204 nodes, 612 DOF
     assert (m.n_nodes, m.n_triangles, 3 * m.n_nodes) == (204, 336, 612)
-    assert len(m.fixed) == 11 and set(m.role[m.fixed]) == {"fixed"}
+    # 4 grounded nodes at the strip's far end: 612 - 12 = 600 free DOF, the columns of P
+    # (Sec. 4.1); both ends of the row and two between, mirror-symmetric
+    assert len(m.fixed) == 4 and set(m.role[m.fixed]) == {"fixed"}
+    assert 3 * len(m.free_nodes) == 600
+    far = np.arange(204 - 11, 204)
+    assert set(m.fixed) <= set(far) and {far[0], far[-1]} <= set(m.fixed)
+    np.testing.assert_allclose(np.sort(m.nodes[m.fixed, 0]), -np.sort(m.nodes[m.fixed, 0])[::-1])
     assert len(m.band_nodes) == 5 * 32
     # the strip hangs from the top of the upper lip and runs back into the mouth (Sec. 2.4)
     strip = np.isin(m.role, ("strip", "fixed"))

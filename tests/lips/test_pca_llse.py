@@ -96,3 +96,39 @@ def test_noise_free_full_covariance_is_the_conditional_mean_and_minimum_norm():
         kkt = np.block([[np.eye(12), A.T], [A, np.zeros((8, 8))]])
         c = np.linalg.solve(kkt, np.concatenate([np.zeros(12), r]))[:12]
         np.testing.assert_allclose(u[f], train.mean(0) + X @ c, atol=1e-8)
+
+
+def test_both_readings_of_the_10_mode_estimator_against_independent_formulas():
+    # 10 modes, 15 observed DOF: H Lambda H^T (15 x 15) has rank 10, the printed inverse does
+    # not exist. Pseudo-inverse reading: numpy's pinv of H Lambda H^T in the printed formula.
+    # Noise-term reading: the posterior mean in the information form on the mode coefficients,
+    # c ~ N(0, diag(lambda)), y = H Phi c + n, n ~ N(0, s2 I):
+    # c_hat = (diag(1/lambda) + Phi_o^T Phi_o / s2)^-1 Phi_o^T (y - H m) / s2.
+    modes = pca_svd(DATA[:50], 10)
+    obs = np.arange(0, 45, 3)
+    H = np.eye(45)[obs]
+    y = DATA[50:, obs]
+    cov = modes.modes.T @ np.diag(modes.variances) @ modes.modes
+    S = H @ cov @ H.T
+    assert np.linalg.matrix_rank(S) == 10 < len(obs)
+    est = LLSE.from_modes(modes)
+    r = (y - modes.mean[obs]).T
+    pinv = (modes.mean[:, None] + cov @ H.T @ np.linalg.pinv(S, rcond=1e-12) @ r).T
+    np.testing.assert_allclose(est.estimate(y, obs, 0.0), pinv, atol=1e-8)
+    s2 = ppca_noise_var(pca_svd(DATA[:50]), 10, 45)
+    phi_o = modes.modes.T[obs]
+    c = np.linalg.solve(np.diag(1 / modes.variances) + phi_o.T @ phi_o / s2, phi_o.T @ r / s2)
+    info = (modes.mean[:, None] + modes.modes.T @ c).T
+    np.testing.assert_allclose(est.estimate(y, obs, s2), info, atol=1e-8)
+    # the two readings differ (the check could fail): the noise term shrinks towards the mean
+    gap = np.abs(est.estimate(y, obs, s2) - est.estimate(y, obs, 0.0)).max()
+    assert gap > 1e-6
+    shrink = np.linalg.norm(est.estimate(y, obs, s2) - modes.mean)
+    assert shrink < np.linalg.norm(est.estimate(y, obs, 0.0) - modes.mean)
+
+
+def test_ppca_noise_var_against_the_covariance_eigenvalues():
+    # independent route: eigenvalues of numpy's sample covariance (eq. 13)
+    w = np.sort(np.linalg.eigvalsh(np.cov(DATA[:50].T)))[::-1]
+    expect = (w.sum() - w[:10].sum()) / (45 - 10)
+    assert ppca_noise_var(pca_svd(DATA[:50]), 10, 45) == pytest.approx(expect, rel=1e-9)

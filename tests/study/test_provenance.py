@@ -141,3 +141,30 @@ def test_an_input_hashed_again_gives_its_current_digest(tmp_path):
     f.write_bytes(b"c" * 1000)  # rewritten in place
     assert sha256_file(f, job_input=True) == hashlib.sha256(b"c" * 1000).hexdigest()
     assert sha256_file(f) == hashlib.sha256(b"c" * 1000).hexdigest()
+
+
+def test_a_figure_of_one_dataset_is_titled_with_it(tmp_path):
+    """save_figure names the dataset (its label) in the title unless a title already does,
+    and records the titles in the sidecar."""
+    import json
+
+    from matplotlib.figure import Figure
+
+    from facemotion.study.provenance import Provenance, save_figure
+
+    prov = Provenance(step="rank_markers", config={
+        "wildcards": {"dataset": "S2a_star"}, "params": {"label": "S2a*"}}, inputs=[])
+    fig = Figure()
+    fig.subplots().set_title("Independent motion of each pivot")
+    side = save_figure(fig, [tmp_path / "a.png"], "r_values", prov)
+    assert json.loads(side.read_text())["titles"] == ["S2a*: Independent motion of each pivot"]
+    fig = Figure()
+    fig.suptitle("Errors, S2a*")
+    side = save_figure(fig, [tmp_path / "b.png"], "r_values", prov)
+    assert json.loads(side.read_text())["titles"] == ["Errors, S2a*"]   # already named
+    agg = Provenance(step="summarise_ranking", config={"wildcards": {}, "params": {}},
+                     inputs=[])
+    fig = Figure()
+    fig.suptitle("All datasets")
+    side = save_figure(fig, [tmp_path / "c.png"], "r_values", agg)
+    assert json.loads(side.read_text())["titles"] == ["All datasets"]

@@ -149,3 +149,21 @@ def test_sheet_is_read_literally(tmp_path):
     with pytest.raises(InputError, match=r"row 2: recordings .*takes of subject 'A' is a "
                                          r"directory; give a file or a glob such as takes/\*\.trc"):
         read_subject_sheet(sheet)
+
+
+def test_the_rate_column_declares_a_rate_and_reaches_the_loading_params(tmp_path):
+    from facemotion.study.sheet import dataset_params
+
+    (tmp_path / "clip.csv").write_bytes(b"")
+    sheet = write_sheet(tmp_path, ["A\tclip.csv\topenface_csv\t\t\t30", "B\tclip.csv\topenface_csv"
+                                   "\t\t\t"], header=HEADER.rstrip("\n") + "\trate\n")
+    subjects = read_subject_sheet(sheet)
+    assert subjects["A"].rate == 30.0 and subjects["B"].rate is None
+    datasets = resolve_datasets(subjects, None)
+    assert dataset_params(subjects, datasets, "A")["rate"] == 30.0
+    # a sheet without a declared rate gives the params it always gave
+    assert "rate" not in dataset_params(subjects, datasets, "B")
+    bad = write_sheet(tmp_path, ["A\tclip.csv\topenface_csv\t\t\t0"],
+                      header=HEADER.rstrip("\n") + "\trate\n")
+    with pytest.raises(InputError, match=r"subject 'A'.*rate must be a positive number of Hz"):
+        read_subject_sheet(bad)

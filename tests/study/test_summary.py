@@ -31,7 +31,7 @@ def test_take_lines_name_training_and_heldout_sentences():
 def test_builtin_lip_talker_is_left_out_of_an_own_data_study():
     lips = {"virtual": lip_table(), "mine": lip_table()}
     own = study_summary("lab", "results/lab", lips=lips, builtin_lips=["virtual"],
-                        sentences={"P01": sentences(["t1"], ["t2"])})
+                        dataset_sentences={"P01": sentences(["t1"], ["t2"])})
     assert "Sentences (<dataset>/data/sentences.tsv):" in own
     assert "  P01: trained on 1 (t1); held out 1 (t2)" in own
     assert "  virtual: view" not in own and "  mine: view" in own

@@ -108,6 +108,22 @@ def test_outputs_exist_with_sidecars(smoke_runs):
     assert (cmp[cmp["statement"].str.startswith("S2b")]["verdict"] == "not measured").all()
 
 
+def test_every_per_dataset_figure_is_titled_with_its_dataset(smoke_runs):
+    from helpers import untitled_subject
+
+    a, _ = smoke_runs
+    metas = [json.loads(p.read_text()) for p in (a / "results" / "smoke").rglob("*.meta.json")]
+    figures = [m for m in metas if m["schema_id"].startswith("facemotion/figure/")
+               and "dataset" in m["config"].get("wildcards", {})]
+    assert len(figures) >= 10
+    assert [(m["outputs"][0]["path"], untitled_subject(m)) for m in figures
+            if untitled_subject(m)] == []
+    # the check rejects a figure whose titles do not name its dataset
+    bad = dict(figures[0], titles=["Held-out prediction error"])
+    assert untitled_subject(bad) == (bad["config"]["params"].get("label")
+                                     or bad["config"]["wildcards"]["dataset"])
+
+
 def test_rerun_is_byte_identical(smoke_runs):
     a, b = smoke_runs
     ca, cb = checksums(a), checksums(b)
@@ -294,8 +310,12 @@ def test_terminal_output_is_short_and_ends_with_a_summary(smoke_runs):
     assert summary in tail
     # the headline numbers are the tables' own
     ranks = pd.read_csv(a / "results" / "smoke" / "tables" / "rank_summary.tsv", sep="\t")
-    s1 = ranks[ranks["dataset"] == "S1"].sort_values("tolerance_mm")
+    s1 = ranks[(ranks["dataset"] == "S1")
+               & (ranks["tolerance_from"] == "qr.tolerances_mm")].sort_values("tolerance_mm")
     assert " / ".join(str(r) for r in s1["epsilon_rank"]) in summary
+    noise = ranks[(ranks["dataset"] == "S1") & (ranks["tolerance_from"] == "noise_level")]
+    assert f"{noise['epsilon_rank'].iloc[0]} of {noise['markers'].iloc[0]}" in summary
+    assert "k for 1 mm" in summary and "prediction" in summary
     sel = pd.read_csv(a / "results" / "smoke" / "tables" / "selected_markers.tsv", sep="\t",
                       dtype=str)
     assert " ".join(sel["S1"][:5]) in summary

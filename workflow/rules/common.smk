@@ -268,6 +268,15 @@ COMPARISON_LIP_SUBJECT = (
     if "virtual" in _lip_virtual
     else (_lip_virtual[0] if _lip_virtual else None)
 )
+# virtual lip subject -> the seeds its Table 1 is run on (one job each; default: its seed)
+LIP_SEEDS = {
+    ls: list(
+        config["lips"]["subjects"][ls].get(
+            "seeds", [config["lips"]["subjects"][ls].get("seed", 0)]
+        )
+    )
+    for ls in _lip_virtual
+}
 
 
 # ---- outputs: each file with its sidecar (and a figure's other formats), by one helper ----
@@ -344,6 +353,15 @@ def lip_params(wildcards):
     }
 
 
+def lip_seed_tables(wildcards):
+    """Every virtual lip subject's per-seed Table 1 (the aggregation's inputs)."""
+    return [
+        f"<results>/lips/{ls}/seeds/table1_seed{seed}.tsv"
+        for ls, seeds in LIP_SEEDS.items()
+        for seed in seeds
+    ]
+
+
 def sweep_point_files(wildcards):
     """One table per dataset and point, named by the point's values (sweeps.point_name)."""
     sw = SWEEPS[wildcards.sweep]
@@ -373,16 +391,20 @@ def comparison_inputs(wildcards):
         ls = COMPARISON_LIP_SUBJECT
         inp["lip_reconstruction"] = f"<results>/lips/{ls}/reconstruction.tsv"
         inp["lip_counts"] = f"<results>/lips/{ls}/model_counts.tsv"
+        inp["lip_seeds"] = "<results>/lips/table1_seeds.tsv"
     return inp
 
 
 def summary_inputs(wildcards):
-    return {
+    inp = {
         "lips": [f"<results>/lips/{ls}/reconstruction.tsv" for ls in LIP_SUBJECTS],
         "rank_summary": "<results>/tables/rank_summary.tsv",
         "selected": "<results>/tables/selected_markers.tsv",
         "sentences": per_dataset("<results>/{dataset}/data/sentences.tsv", DATASETS),
     }
+    if COMPARISON_DATASETS or COMPARISON_LIP_SUBJECT is not None:
+        inp["comparison"] = "<results>/tables/paper_comparison.tsv"
+    return inp
 
 
 def builtin_lip_subjects():
@@ -414,6 +436,8 @@ def all_outputs():
         out += ["<results>/figures/error_curves.png"]
     for ls in LIP_SUBJECTS:
         out += [f"<results>/lips/{ls}/reconstruction.tsv"]
+    if LIP_SEEDS:
+        out += ["<results>/lips/table1_seeds.tsv"]
     out += [f"<results>/tables/sweep_{name}.tsv" for name in SWEEPS]
     if TALKERS:
         out.append("<results>/tables/talkers.tsv")

@@ -76,3 +76,53 @@ rule fit_lip_model:
         "fit_lip_model {wildcards.lip_subject}: FEM lip model, modes, LLSE (B&P Table 1)"
     script:
         "../../scripts/fit_lip_model.py"
+
+
+rule reconstruct_lip_seed:
+    output:
+        **table("table", "<results>/lips/{lip_subject}/seeds/table1_seed{seed}.tsv"),
+    log:
+        "<results>/logs/reconstruct_lip_seed/{lip_subject}_seed{seed}.log",
+    benchmark:
+        "<results>/benchmarks/reconstruct_lip_seed/{lip_subject}_seed{seed}.tsv"
+    wildcard_constraints:
+        lip_subject=_choice(LIP_SEEDS),
+        seed=r"\d+",
+    priority: 12
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    params:
+        lip=lip_params,
+    message:
+        "reconstruct_lip_seed {wildcards.lip_subject} seed {wildcards.seed}: B&P Table 1"
+    script:
+        "../../scripts/reconstruct_lip_seed.py"
+
+
+rule summarise_lip_seeds:
+    input:
+        tables=lip_seed_tables,
+    output:
+        **reported_table(
+            "table",
+            "<results>/lips/table1_seeds.tsv",
+            caption="lip_table1_seeds",
+            category="6. Lip model",
+        ),
+    log:
+        "<results>/logs/summarise_lip_seeds.log",
+    priority: 12
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=5,
+    message:
+        "summarise_lip_seeds: B&P Table 1 over the virtual lip talker's seeds"
+    script:
+        "../../scripts/summarise_lip_seeds.py"

@@ -85,6 +85,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                  neutral: str = "first_frame", limits: Limits | None = None,
                  sentences: list | None = None,
                  subject_prefix: str | None = None,
+                 rate: float | None = None,
                  copy_markers: list[tuple[str, str]] = (),
                  markers_named_in: str = "the subject sheet",
                  takes: dict | None = None, progress: bool = False) -> LoadedDataset:
@@ -99,6 +100,8 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     ``copy_markers``: (target, source) pairs; the target's missing samples are filled by
     copying the source's displacement in head coordinates (``facemotion.ingest.copy_fill``) before
     the other gaps are filled.
+    ``rate``: the declared frame rate (Hz; the sheet's ``rate``), see
+    :func:`facemotion.io.registry.read_recording`.
     ``markers_named_in`` says in errors where the marker lists came from (the subject sheet, or
     the arguments of :func:`load`).
     ``takes``: a dict shared by the calls that load several datasets of one subject (the same
@@ -110,7 +113,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     from facemotion.ingest.validation import Limits, check_same_shape
 
     limits = limits or Limits()
-    source = TakeSource(fmt, units, subject_prefix)
+    source = TakeSource(fmt, units, subject_prefix, rate)
     items = [Segment.from_param(s) for s in (sentences if sentences is not None
                                               else recordings)]
     chosen = [items[i] for i in list(train) + list(heldout)]
@@ -155,6 +158,7 @@ class TakeSource:
     fmt: str
     units: str | None = None
     subject_prefix: str | None = None
+    rate: float | None = None
 
 
 def progress_bar(total: int, what: str, show: bool):
@@ -183,14 +187,15 @@ def read_sentences(chosen: list[Segment], source: TakeSource,
     n_takes, n_read = len(dict.fromkeys(s.take for s in chosen)), 0
     bar = progress_bar(n_takes, "reading takes", progress)
     for i, seg in enumerate(chosen):
-        key = (seg.take, source.fmt, source.units, source.subject_prefix)
+        key = (seg.take, source.fmt, source.units, source.subject_prefix, source.rate)
         if key not in takes:
             n_read += 1
             log.info("reading %s (%d/%d)", seg.take, n_read, n_takes)
             if bar is not None:
                 bar.set_postfix_str(Path(seg.take).name, refresh=True)
             takes[key] = read_recording(seg.take, source.fmt, units=source.units,
-                                        subject_prefix=source.subject_prefix)
+                                        subject_prefix=source.subject_prefix,
+                                        rate=source.rate)
             if bar is not None:
                 bar.update(1)
         recs.append(cut(takes[key], seg))
@@ -237,7 +242,7 @@ def check_sentences(recs: list[Recording], chosen: list[Segment], roles: list[st
         # a sentence checked clean for another dataset of the subject (same interval, markers
         # and limits; nothing to warn about) is not checked again
         checked = ("checked", seg, source.fmt, source.units, source.subject_prefix,
-                   tuple(used), limits)
+                   source.rate, tuple(used), limits)
         if takes is not None and checked in takes:
             selected, found = rec.select(used), takes[checked]
         else:
@@ -382,11 +387,13 @@ def load(paths, *, heldout_sentences=(), fmt: str | None = None, head_markers=()
         does (1 is the first of ``paths``); the others train.
     heldout: the 0.2 form, counting from 0; deprecated (DeprecationWarning), removed in 0.3.
     progress: a progress bar on stderr while the takes are read (only on a terminal).
-    fmt: "c3d", "trc" or "csv"; default: from the first file's suffix.
+    fmt: one of facemotion.io.registry.FORMAT_NAMES; default: from the first file's content
+        or suffix (:func:`facemotion.io.registry.infer_format`).
     head_markers: >= 3 markers that move with the head only (removed as rigid motion).
     exclude_markers / include_markers: markers left out of / kept in the analysis.
-    options: the other settings of :func:`load_dataset` (``units``, ``max_interp_s``,
-        ``long_gaps``, ``neutral``), with its defaults (those of the workflow's config).
+    options: the other settings of :func:`load_dataset` (``units``, ``subject_prefix``,
+        ``rate``, ``max_interp_s``, ``long_gaps``, ``neutral``), with its defaults (those of
+        the workflow's config).
     """
     from facemotion.io.registry import infer_format
 

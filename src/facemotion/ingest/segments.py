@@ -44,6 +44,7 @@ class Segment:
     take: str
     start_s: float | None = None
     end_s: float | None = None
+    grid_end_s: float | None = None  # the end (xmax) of the TextGrid that cut it, if any
 
     @property
     def whole(self) -> bool:
@@ -51,8 +52,11 @@ class Segment:
 
     def to_param(self) -> dict:
         """A plain dict (for rule params and provenance)."""
-        return {"name": self.name, "take": self.take, "start_s": self.start_s,
-                "end_s": self.end_s}
+        out = {"name": self.name, "take": self.take, "start_s": self.start_s,
+               "end_s": self.end_s}
+        if self.grid_end_s is not None:
+            out["grid_end_s"] = self.grid_end_s
+        return out
 
     @classmethod
     def from_param(cls, value) -> Segment:
@@ -61,7 +65,7 @@ class Segment:
         if isinstance(value, (str, Path)):
             return cls(Path(value).stem, str(value))
         return cls(str(value["name"]), str(value["take"]), value.get("start_s"),
-                   value.get("end_s"))
+                   value.get("end_s"), value.get("grid_end_s"))
 
 
 @dataclass(frozen=True)
@@ -140,30 +144,144 @@ def check_within_take(intervals, n_frames: int, rate: float, where: str) -> None
 
 # ------------------------------------------------------------------------------- TextGrid
 
-def read_textgrid_tier(path, tier: str) -> list[tuple[float, float, str]]:
-    """The non-empty intervals ``(start, end, text)`` of an interval tier (praatio)."""
-    from praatio import textgrid
+def check_grid_fits_take(grid_end_s: float, n_frames: int, rate: float, where: str) -> None:
+    """A TextGrid may end up to one frame after its take (the sound's and the take's ends are
+    quantised differently); one longer than that belongs to another, longer recording."""
+    duration = n_frames / rate
+    if grid_end_s > duration + 1.0 / rate:
+        raise InputError(f"{where}: the TextGrid runs to {grid_end_s:.6g} s, longer than its "
+                         f"take ({n_frames} frames at {rate:g} Hz = {duration:.6g} s): it "
+                         "belongs to another recording, or the take is cut short")
 
+
+@dataclass(frozen=True)
+class TextGridTiers:
+    """A TextGrid as read: its time domain and tiers (name -> (is an interval tier, entries
+    (start, end, text); a point tier's entries have start == end))."""
+
+    xmin: float
+    xmax: float
+    tiers: dict[str, tuple[bool, list[tuple[float, float, str]]]]
+    reader: str   # "praatio" or "praat" (parselmouth)
+
+
+def read_textgrid(path) -> TextGridTiers:
+    """A Praat TextGrid through praatio, or through Praat itself (parselmouth) for what
+    praatio cannot read: the binary and chronological formats, ``!`` comments, short text
+    without the blank line, scientific-notation times. The text's encoding is detected
+    (:func:`textgrid_text`)."""
     p = Path(path)
     if not p.is_file():
         raise MissingFileError(f"{p}: TextGrid file not found")
     try:
-        tg = textgrid.openTextgrid(str(p), includeEmptyIntervals=False)
-    except Exception as e:  # praatio raises several kinds on malformed files
-        detail = str(e).splitlines()[0][:80] if str(e) else "no detail"
-        raise InputError(f"{p}: cannot read as a Praat TextGrid ({type(e).__name__}: "
-                         f"{detail})") from None
-    if tier not in tg.tierNames:
-        tiers = ", ".join(token(t) for t in tg.tierNames[:10]) or "none"
+        raw = p.read_bytes()
+    except OSError as e:
+        raise InputError(f"{p}: cannot read the TextGrid ({type(e).__name__})") from None
+    text = None if raw.startswith(b"ooBinaryFile") else textgrid_text(raw)
+    if text is not None:
+        try:
+            return _praatio_tiers(text)
+        except Exception:  # praatio raises several kinds on what it does not parse
+            pass  # Praat's own parser reads it or says why not
+    return _praat_tiers(p)
+
+
+def textgrid_text(raw: bytes) -> str | None:
+    """A text TextGrid's characters: UTF-8 or UTF-16 by their byte-order mark, UTF-16 without
+    one by its NUL bytes, else UTF-8, else Latin-1 (Praat's older default); None for a file
+    that is not text in any of them."""
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        encoding = "utf-16"
+    elif raw.startswith(b"\xef\xbb\xbf"):
+        encoding = "utf-8-sig"
+    elif len(raw) >= 4 and raw[1] == 0 and raw[3] == 0 and raw[0] != 0:
+        encoding = "utf-16-le"
+    elif len(raw) >= 4 and raw[0] == 0 and raw[2] == 0 and raw[1] != 0:
+        encoding = "utf-16-be"
+    else:
+        encoding = "utf-8"
+    try:
+        return raw.decode(encoding)
+    except UnicodeDecodeError:
+        if encoding != "utf-8" or b"\x00" in raw:
+            return None
+        return raw.decode("latin-1")
+
+
+def _praatio_tiers(text: str) -> TextGridTiers:
+    from praatio.utilities import textgrid_io
+
+    tg = textgrid_io.parseTextgridStr(text, includeEmptyIntervals=True)
+    tiers = {}
+    for t in tg["tiers"]:
+        interval = t["class"] == "IntervalTier"
+        entries = [(float(e[0]), float(e[1]) if interval else float(e[0]), str(e[-1]))
+                   for e in t["entries"]]
+        tiers.setdefault(str(t["name"]), (interval, entries))
+    return TextGridTiers(float(tg["xmin"]), float(tg["xmax"]), tiers, "praatio")
+
+
+def _praat_tiers(p: Path) -> TextGridTiers:
+    """The TextGrid read by Praat (parselmouth), tier by tier through Praat's own queries."""
+    import parselmouth
+    from parselmouth.praat import call
+
+    try:
+        tg = parselmouth.read(str(p))
+        if not isinstance(tg, parselmouth.TextGrid):
+            raise InputError(f"{p}: a Praat {type(tg).__name__}, not a TextGrid")
+        tiers = {}
+        for i in range(1, call(tg, "Get number of tiers") + 1):
+            name = call(tg, "Get tier name...", i)
+            if call(tg, "Is interval tier...", i):
+                entries = [(call(tg, "Get start time of interval...", i, k),
+                            call(tg, "Get end time of interval...", i, k),
+                            call(tg, "Get label of interval...", i, k))
+                           for k in range(1, call(tg, "Get number of intervals...", i) + 1)]
+            else:
+                entries = [(t, t, call(tg, "Get label of point...", i, k))
+                           for k in range(1, call(tg, "Get number of points...", i) + 1)
+                           for t in [call(tg, "Get time of point...", i, k)]]
+            tiers.setdefault(str(name), (bool(call(tg, "Is interval tier...", i)), entries))
+        return TextGridTiers(call(tg, "Get start time"), call(tg, "Get end time"), tiers,
+                             "praat")
+    except parselmouth.PraatError as e:
+        detail = str(e).strip().splitlines()
+        raise InputError(f"{p}: cannot read as a Praat TextGrid (Praat: "
+                         f"{detail[0][:80] if detail else 'no detail'})") from None
+
+
+def read_textgrid_tier(path, tier: str) -> list[tuple[float, float, str]]:
+    """The non-empty intervals ``(start, end, text)`` of an interval tier."""
+    return read_textgrid_intervals(path, tier)[0]
+
+
+def read_textgrid_intervals(path, tier: str) -> tuple[list[tuple[float, float, str]], float]:
+    """The non-empty intervals ``(start, end, text)`` of an interval tier, and the TextGrid's
+    end (xmax): the take it cuts must be at least that long. A TextGrid must start at 0 (the
+    take's first sample); one whose xmin is not 0 holds another time line (a part extracted
+    with its original times) and is refused."""
+    p = Path(path)
+    tg = read_textgrid(p)
+    if tg.xmin != 0:
+        raise InputError(f"{p}: the TextGrid starts at {tg.xmin:.6g} s, not 0: its times are "
+                         "not the take's (a part extracted with its original times?); shift "
+                         "it to start at 0 (Praat: Modify times, Shift times to)")
+    if tier not in tg.tiers:
+        tiers = ", ".join(token(t) for t in list(tg.tiers)[:10]) or "none"
         raise InputError(f"{p}: no tier {tier!r} (tiers: {tiers})")
-    t = tg.getTier(tier)
-    if not isinstance(t, textgrid.IntervalTier):
+    interval, entries = tg.tiers[tier]
+    if not interval:
         raise InputError(f"{p}: tier {tier!r} is a point tier; sentences need an interval tier")
-    out = [(float(e.start), float(e.end), _clean_name(e.label)) for e in t.entries
-           if str(e.label).strip()]
+    out = [(float(s), float(e), _clean_name(label)) for s, e, label in entries
+           if str(label).strip()]
     if not out:
         raise InputError(f"{p}: tier {tier!r} has no non-empty interval")
-    return out
+    for s, e, _ in out:
+        if s < tg.xmin or e > tg.xmax:
+            raise InputError(f"{p}: tier {tier!r} interval {s:.6g}-{e:.6g} s lies outside the "
+                             f"TextGrid's {tg.xmin:.6g}-{tg.xmax:.6g} s")
+    return out, float(tg.xmax)
 
 
 # ------------------------------------------------------------------------------- C3D events
@@ -179,20 +297,19 @@ def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
     """A C3D take's EVENT group: labels and times from the take's first sample.
 
     EVENT:TIMES count from frame 1 of the capture (minutes and seconds, added); in a trial
-    that starts later (header first frame f > 1) they are shifted by (f - 1) / rate. Times
-    within ``EVENT_SNAP_FRAMES`` of a sample are snapped to it (they are stored as 32-bit
-    floats). With ``subject_prefix``, events of other subjects (EVENT:SUBJECTS) are ignored.
+    that starts later (header first frame f > 1) they are shifted by (f - 1) / rate. TIMES is
+    a 2 x N array (minutes row, seconds row), or, as some Vicon/BTK files store it, one flat
+    list of 2N values, minutes and seconds interleaved (:func:`event_times`). Times within
+    ``EVENT_SNAP_FRAMES`` of a sample are snapped to it (they are stored as 32-bit floats). An
+    event outside the take (before its first sample or after its end) is an error naming it.
+    With ``subject_prefix``, events of other subjects (EVENT:SUBJECTS) are ignored.
     """
-    import ezc3d
+    from facemotion.io.c3d import open_c3d
 
     p = Path(path)
     if not p.is_file():
         raise MissingFileError(f"{p}: file not found")
-    try:
-        c = ezc3d.c3d(str(p))
-    except Exception as e:
-        raise InputError(f"{p}: cannot read as C3D ({type(e).__name__}: "
-                         f"{str(e).splitlines()[0] if str(e) else 'no detail'})") from None
+    c = open_c3d(p)
     point = c["parameters"]["POINT"]
     rate_v = np.ravel(point["RATE"]["value"]) if "RATE" in point else np.array([])
     rate = float(rate_v[0]) if rate_v.size else float(c["header"]["points"]["frame_rate"])
@@ -204,20 +321,42 @@ def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
     used = int(np.ravel(group["USED"]["value"])[0]) if "USED" in group else 0
     if used == 0:
         raise InputError(f"{p}: no events (the C3D EVENT group is missing or empty)")
-    labels = [str(x).strip() for x in group["LABELS"]["value"]][:used]
-    times = np.asarray(group["TIMES"]["value"], dtype=float).reshape(2, -1)[:, :used]
+    labels = [str(x).strip() for x in group["LABELS"]["value"]] if "LABELS" in group else []
+    if len(labels) < used:
+        raise InputError(f"{p}: EVENT:USED is {used} but EVENT:LABELS names {len(labels)}")
+    minutes, seconds = event_times(group["TIMES"]["value"] if "TIMES" in group else [],
+                                   used, str(p))
     subjects = ([str(x).strip() for x in group["SUBJECTS"]["value"]][:used]
                 if "SUBJECTS" in group else [""] * used)
+    duration = n_frames / rate
     events = []
-    for lab, minutes, seconds, subj in zip(labels, times[0], times[1], subjects, strict=False):
+    for k, (lab, m, sec, subj) in enumerate(zip(labels[:used], minutes, seconds, subjects,
+                                                strict=False)):
         if subject_prefix and subj and subj != subject_prefix:
             continue
-        t = float(minutes) * 60.0 + float(seconds) - first / rate
-        k = round(t * rate)
-        if abs(t * rate - k) <= EVENT_SNAP_FRAMES:
-            t = k / rate
+        t = float(m) * 60.0 + float(sec) - first / rate
+        i = round(t * rate)
+        if abs(t * rate - i) <= EVENT_SNAP_FRAMES:
+            t = i / rate
+        if not (math.isfinite(t) and 0 <= t <= duration):
+            raise InputError(f"{p}: event {k + 1} {token(lab)} at {t:.4g} s is outside the take "
+                             f"(0-{duration:.4g} s: {n_frames} frames at {rate:g} Hz from "
+                             f"capture frame {first + 1})")
         events.append((lab, t))
     return TakeEvents(events, rate, n_frames)
+
+
+def event_times(value, used: int, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """EVENT:TIMES as (minutes, seconds) of the first ``used`` events, from either layout:
+    a 2 x N array, or a flat list of 2N values with minutes and seconds interleaved."""
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 2 and arr.shape[0] == 2 and arr.shape[1] >= used:
+        return arr[0, :used], arr[1, :used]
+    if arr.ndim == 1 and arr.size >= 2 * used and arr.size % 2 == 0:
+        pairs = arr.reshape(-1, 2)  # (minutes, seconds) per event
+        return pairs[:used, 0], pairs[:used, 1]
+    raise InputError(f"{where}: EVENT:TIMES has shape {arr.shape}, not 2 x N or 2N values "
+                     f"for the {used} events of EVENT:USED")
 
 
 def pair_events(events: list[tuple[str, float]], start_label: str, end_label: str,
@@ -303,7 +442,8 @@ def _unique_names(segments: list[Segment]) -> list[Segment]:
     for s in segments:
         k = seen.get(s.name, 0) + 1
         seen[s.name] = k
-        out.append(s if k == 1 else Segment(f"{s.name} [{k}]", s.take, s.start_s, s.end_s))
+        out.append(s if k == 1 else Segment(f"{s.name} [{k}]", s.take, s.start_s, s.end_s,
+                                            s.grid_end_s))
     return out
 
 
@@ -327,11 +467,11 @@ def segment_subject(cell: str, takes: list[str], fmt: str, sheet_dir, where: str
         for take in takes:
             path = _resolve(spec.path, take, sheet_dir, shared_data)
             try:
-                rows = read_textgrid_tier(path, spec.tier)
+                rows, grid_end = read_textgrid_intervals(path, spec.tier)
                 check_intervals([(s, e) for s, e, _ in rows], f"{path} tier {spec.tier!r}")
             except InputError as e:
                 raise InputError(f"{where}: {e}") from None
-            segments += [Segment(name, take, s, e) for s, e, name in sorted(rows)]
+            segments += [Segment(name, take, s, e, grid_end) for s, e, name in sorted(rows)]
             sources.append(str(path))
     elif spec.kind == "events":
         if fmt != "c3d":
@@ -426,6 +566,8 @@ def cut(rec: Recording, seg: Segment) -> Recording:
     if seg.whole:
         return rec
     where = f"{rec.source or seg.take} (sentence {seg.name!r})"
+    if seg.grid_end_s is not None:
+        check_grid_fits_take(seg.grid_end_s, rec.n_frames, rec.rate, where)
     i0, i1 = frame_range(float(seg.start_s), float(seg.end_s), rec.rate, rec.n_frames, where)
     return Recording(rec.labels, rec.points[i0:i1].copy(), rec.rate,
                      source=f"{rec.source or seg.take} [{seg.name}]",

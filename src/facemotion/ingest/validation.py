@@ -10,7 +10,8 @@ well-formed and still give a plausible wrong number:
   41-63 mm on the shared AnimFace and GRID data): a spread outside that range means the
   declared units are wrong (a CSV in metres read as millimetres, a TRC header saying ``m`` for
   millimetre data) and stops the run, naming the units and the spread measured
-  (:func:`check_face_spread`).
+  (:func:`check_face_spread`); when no other metric unit would bring the spread into that
+  range (a body, a capture volume), the take is refused as not a face.
 * **Length and rate.** A take shorter than ``checks.min_take_frames`` frames is an error,
   training and held out alike (a one-frame take has no motion: its error curve is all zeros);
   so is a frame rate outside ``checks.rate_hz`` (10-2000 Hz; a time column in milliseconds).
@@ -204,12 +205,33 @@ def check_face_spread(rec: Recording, limits: Limits,
     if not lo <= spread <= hi:
         declared = {"file": "as the file declares", "sheet": "as the subject sheet says",
                     "default": "the default for a file that does not say"}[rec.units_source]
+        fits = _units_that_fit(spread, rec.units, (lo, hi))
+        if not fits:
+            raise InputError(
+                f"{where}: not a face: the markers span a median {spread:.3g} mm from their "
+                f"centre (read in {rec.units}, {declared}), where a face spans {lo:g}-{hi:g} mm "
+                f"({limits.name('face_spread_mm')}), and no other metric units "
+                f"({', '.join(_METRIC)}) would bring them there")
         raise InputError(
             f"{where}: the markers lie a median {spread:.3g} mm from their centre when "
             f"read in {rec.units} ({declared}); a face spans {lo:g}-{hi:g} mm "
-            f"({limits.name('face_spread_mm')}): the units are wrong, fix the "
-            f"{'file' if rec.units_source == 'file' else 'sheet'}'s units")
+            f"({limits.name('face_spread_mm')}): the units are wrong ({' or '.join(fits)} "
+            f"would fit), fix the {'file' if rec.units_source == 'file' else 'sheet'}'s units")
     return spread
+
+
+#: The units a face's spread is tried in when it is off: a file or sheet that names the wrong
+#: metric unit (a factor of 10, 100 or 1000) is the common mistake; an inch/metre mix-up is not.
+_METRIC = ("mm", "cm", "m")
+
+
+def _units_that_fit(spread: float, used: str, limits: tuple[float, float]) -> list[str]:
+    """The metric units (other than ``used``) in which a spread of ``spread`` mm, read in
+    ``used``, would lie within ``limits``."""
+    lo, hi = limits
+    scale = unit_scale(used, "units")
+    return [u for u in _METRIC if unit_scale(u, "units") != scale
+            and lo <= spread * unit_scale(u, "units") / scale <= hi]
 
 
 def check_rate(rec: Recording, limits: Limits) -> None:

@@ -146,6 +146,33 @@ def check_c3d_size(path) -> C3DLayout:
     return layout
 
 
+def open_c3d(p: Path):
+    """The file read by ezc3d (header, parameters and data), or InputError naming it.
+
+    ezc3d takes the path as UTF-8 text; a file whose name is other bytes (a POSIX name in
+    Latin-1, say) is opened through a link with a plain name in a temporary folder."""
+    import ezc3d
+
+    try:
+        str(p).encode("utf-8")
+        name_ok = True
+    except UnicodeEncodeError:
+        name_ok = False
+    try:
+        if name_ok:
+            return ezc3d.c3d(str(p))
+        import os
+        import tempfile
+
+        with tempfile.TemporaryDirectory(prefix="facemotion-c3d-") as tmp:
+            link = Path(tmp) / "take.c3d"
+            os.symlink(os.fsencode(p.resolve()), os.fsencode(link))
+            return ezc3d.c3d(str(link))
+    except Exception as e:  # ezc3d raises RuntimeError/IOError with terse messages
+        raise InputError(f"{p}: cannot read as C3D ({type(e).__name__}: "
+                         f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})") from None
+
+
 def read_c3d(path, units: str | None = None) -> Recording:
     """Read the 3-D points of a C3D file with ezc3d.
 
@@ -160,17 +187,11 @@ def read_c3d(path, units: str | None = None) -> Recording:
     (0, 0, 0) with a residual that is not positive (the exporters' other way of writing
     "no data").
     """
-    import ezc3d
-
     from facemotion.io.c3d_points import describe_dropped, non_marker_points
 
     p = check_readable(path)
     check_c3d_size(p)
-    try:
-        c = ezc3d.c3d(str(p))
-    except Exception as e:  # ezc3d raises RuntimeError/IOError with terse messages
-        raise InputError(f"{p}: cannot read as C3D ({type(e).__name__}: "
-                         f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})") from None
+    c = open_c3d(p)
     point = c["parameters"]["POINT"]
     data = np.asarray(c["data"]["points"], dtype=float)  # (4, markers, frames)
     n = data.shape[1]

@@ -57,7 +57,7 @@ def subject_columns(labels: list[str], subject_prefix: str | None,
     else:
         raise InputError(f"{where}: labels belong to several subjects (prefixes "
                          f"{_listing(found)}); choose one with the sheet's subject_prefix "
-                         "column")
+                         "column (--subject-prefix on the command line)")
     keep = [i for i, lab in enumerate(labels) if split_label(lab)[0] == wanted]
     names = [split_label(labels[i])[1] for i in keep]
     empty = [labels[i] for i, n in zip(keep, names, strict=True) if not n]

@@ -23,6 +23,7 @@ the file and the line. Messages never quote a file's content beyond a short toke
 from __future__ import annotations
 
 import importlib
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,12 +44,24 @@ class Format:
     label_reader: str | None = None   # reads the labels from the header alone (else: the file)
     writer: str | None = None          # function of the module: (path, Recording) -> None
     units: str = ""            # where the units come from
+    rate_from_times: bool = False  # the rate is a time column's (a declared rate overrides it)
 
     def _function(self, name: str) -> Callable:
         return getattr(importlib.import_module(f"facemotion.io.{self.module}"), name)
 
-    def read(self, path, units: str | None = None) -> Recording:
-        return self._function(self.reader)(path, units=units)
+    def read(self, path, units: str | None = None, rate: float | None = None) -> Recording:
+        """The file read; ``rate`` (Hz, declared by the sheet or ``--rate``) replaces the rate
+        of a format that takes it from time stamps, and must match any other file's rate."""
+        if rate is not None:
+            rate = check_rate(rate, f"{path} (declared rate)")
+        if rate is not None and self.rate_from_times:
+            return self._function(self.reader)(path, units=units, rate=rate)
+        rec = self._function(self.reader)(path, units=units)
+        if rate is not None and abs(rec.rate - rate) > 1e-6 * rate:
+            raise InputError(f"{path}: the file states {rec.rate:g} Hz but the declared rate "
+                             f"is {rate:g} Hz; declare no rate for a {self.name} file, or "
+                             "its own")
+        return rec
 
     def labels(self, path) -> list[str]:
         if self.label_reader is None:
@@ -78,11 +91,11 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
            units="the file's Length Units; the sheet's for a file without them"),
     Format("openface_csv", "OpenFace 2.x landmark CSV (FeatureExtraction)", "openface",
            "read_openface_csv", writer="write_openface_csv",
-           units="mm (OpenFace's 3-D landmarks)"),
+           units="mm (OpenFace's 3-D landmarks)", rate_from_times=True),
 )}
 #: The format names, in the registry's order.
 FORMAT_NAMES: tuple[str, ...] = tuple(FORMATS)
-#: Formats told by the file's suffix when none is given (the vendor exports need a format).
+#: Formats told by the file's suffix when neither the caller nor the content tells.
 SUFFIX_FORMATS = {s: f.name for f in FORMATS.values() for s in f.suffixes}
 
 
@@ -95,37 +108,90 @@ def get_format(fmt: str, where: str = "format") -> Format:
     return FORMATS[key]
 
 
+def check_rate(rate, where: str) -> float:
+    """A declared frame rate (Hz) as a positive finite float; InputError naming ``where``."""
+    try:
+        value = float(rate)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: rate {token(rate)} is not a number (Hz)") from None
+    if not math.isfinite(value) or value <= 0:
+        raise InputError(f"{where}: rate must be a positive number of Hz, got {token(rate)}")
+    return value
+
+
+#: QTM TSV header variables, one of which starts a QTM export.
+_QTM_KEYS = ("NO_OF_FRAMES", "FILE_VERSION", "NO_OF_CAMERAS", "NO_OF_MARKERS", "FREQUENCY")
+
+
+def format_from_content(head: bytes) -> str | None:
+    """The format a file's first bytes show, or None: C3D by its header's key byte (0x50),
+    TRC by ``PathFileType``, a Motive export by ``Format Version``, a QTM export by its
+    header variables, an OpenFace CSV by its ``frame``, ``timestamp`` and ``success``
+    columns, a wide CSV by its ``time`` column."""
+    if len(head) >= 512 and head[1] == 0x50 and head[0] >= 2:
+        return "c3d"
+    text = head.decode("utf-8", errors="replace").lstrip("\ufeff")
+    first = text.split("\n", 1)[0].rstrip("\r")
+    if first.startswith("PathFileType"):
+        return "trc"
+    if first.split(",", 1)[0].strip() == "Format Version":
+        return "optitrack_csv"
+    if first.split("\t", 1)[0].strip() in _QTM_KEYS:
+        return "qualisys_tsv"
+    columns = {c.strip() for c in first.split(",")}
+    if {"frame", "timestamp", "success"} <= columns:
+        return "openface_csv"
+    if first.split(",", 1)[0].strip() == "time":
+        return "csv"
+    return None
+
+
 def infer_format(path) -> str:
-    """The format of a file from its suffix (.c3d, .trc, .csv, any case)."""
-    suffix = Path(path).suffix.lower()
+    """The format of a file from its content (:func:`format_from_content`), else from its
+    suffix (.c3d, .trc, .csv, any case); InputError when neither tells."""
+    p = Path(path)
+    head = b""
+    if p.is_file():
+        try:
+            with open(p, "rb") as fh:
+                head = fh.read(4096)
+        except OSError:
+            head = b""
+    found = format_from_content(head)
+    if found is not None:
+        return found
+    suffix = p.suffix.lower()
     if suffix not in SUFFIX_FORMATS:
-        raise InputError(f"{path}: cannot tell the format from the suffix "
-                         f"{Path(path).suffix or '(none)'!r}; give the format "
+        raise InputError(f"{path}: cannot tell the format from the content or the suffix "
+                         f"{p.suffix or '(none)'!r}; give the format "
                          f"({', '.join(FORMAT_NAMES)})")
     return SUFFIX_FORMATS[suffix]
 
 
 def read_recording(path, fmt: str | None = None, units: str | None = None,
-                   subject_prefix: str | None = None) -> Recording:
+                   subject_prefix: str | None = None, rate: float | None = None) -> Recording:
     """Read one take (``facemotion.read``): labelled marker trajectories in mm.
 
-    fmt: one of ``FORMAT_NAMES``; default: from the file's suffix (.c3d, .trc, .csv).
+    fmt: one of ``FORMAT_NAMES``; default: from the file's content, else its suffix
+    (:func:`infer_format`).
     units (mm, cm, m, in): the subject sheet's, applied only when the file does not state its
     own. Labels "Subject:Marker" lose their prefix; a file with several subjects needs
     ``subject_prefix`` (see :mod:`facemotion.io.prefixes`). Missing samples are NaN.
+    rate (Hz): the declared frame rate; it replaces the rate an OpenFace CSV's timestamps
+    imply, and must equal the rate any other file states.
     """
     from facemotion.io.prefixes import select_subject
 
     form = get_format(infer_format(path) if fmt is None else fmt, str(path))
-    return select_subject(form.read(path, units=units), subject_prefix)
+    return select_subject(form.read(path, units=units, rate=rate), subject_prefix)
 
 
-def read_labels(path, fmt: str, subject_prefix: str | None = None) -> list[str]:
+def read_labels(path, fmt: str | None, subject_prefix: str | None = None) -> list[str]:
     """The marker labels of a file, reading no more of it than needed (TRC and CSV: the
     header; C3D and the other exports: the whole file), without a subject prefix."""
     from facemotion.io.prefixes import subject_columns
 
-    labels = get_format(fmt, str(path)).labels(path)
+    labels = get_format(infer_format(path) if fmt is None else fmt, str(path)).labels(path)
     return subject_columns(labels, subject_prefix, str(path))[1]
 
 

@@ -79,8 +79,13 @@ def _trc_header(p: Path, lines: list[str], units: str | None):
         raise InputError(f"{p}: not a TRC file (first line does not start with PathFileType)")
     if len(lines) < 5:
         raise InputError(f"{p}: TRC header is incomplete ({len(lines)} lines)")
+    if "\t" not in lines[1] and "," in lines[1]:
+        raise InputError(f"{p}: TRC header line 2 is comma-separated, not tab-separated (a TRC "
+                         "saved as CSV); save it with tabs")
     keys = [k.strip() for k in split_tab_line(lines[1])]
     vals = [v.strip() for v in split_tab_line(lines[2])]
+    if len(vals) > len(keys) and len([v for v in vals if v]) == len(keys):
+        vals = [v for v in vals if v]  # repeated tabs between the values (OpenSim's own files)
     if len(vals) > len(keys) and any(vals[len(keys):]):
         raise InputError(f"{p}: TRC line 3 has {len(vals)} header values for {len(keys)} keys")
     header = dict(zip(keys, vals, strict=False))

@@ -13,8 +13,10 @@ push-through identity gives the same estimate through a k x k system,
     u_hat = m + L (B^T B + sigma^2 I)^-1 B^T (y - H m),   B = H L,
 
 and at sigma^2 = 0 its limit, the minimum-norm least-squares fit u_hat = m + L pinv(B) (y - H m)
-(for the k-mode model: least squares on the modes). The paper writes no noise term, so
-sigma^2 = 0 is its estimator; the study reports it beside a regularised one.
+(for the k-mode model: least squares on the modes). The paper writes no noise term; with the
+10-mode covariance its formula needs one reading or the other (H Lambda H^T has rank 10), and
+the study reports both: the noise term with the probabilistic-PCA sigma^2 (the chosen reading,
+reasoned in `facemotion.lips.pipeline`) and the pseudo-inverse sigma^2 = 0 beside it.
 
 The noise variance is a setting. The principled default for the k-mode model is probabilistic
 PCA (Tipping & Bishop 1999): the variance the k modes leave out, spread evenly over the

@@ -4,15 +4,16 @@ Two meshes are built here:
 
 * `parametric_lip_mesh`: a synthetic lip of realistic size (about 50 mm wide, curved round the
   teeth in z), made of closed rings from the outer lip contour to the inner one, plus a thin
-  strip from the top of the lips back into the mouth whose far row is fixed (paper Sec. 2.4).
-  The default (32 nodes round, 5 rings, an 11 x 4 strip) has the paper's counts (Sec. 2.1):
-  204 nodes, 612 DOF, 336 triangles.
+  strip from the top of the lips back into the mouth, grounded at the strip's far end (paper
+  Sec. 2.4). The default (32 nodes round, 5 rings, an 11 x 4 strip, 4 grounded nodes) has the
+  paper's counts (Secs. 2.1, 4.1): 204 nodes, 612 DOF, 336 triangles, 600 free DOF.
 * `canonical_lip_mesh`: the lip band of the MediaPipe canonical face mesh (80 vertices, 120
   triangles between the inner and outer lip contours; the 18 triangles that close the mouth are
   dropped), plus an extruded mouth strip.
 
 Node roles: 'outer' (outer contour), 'lip' (between the contours), 'inner' (inner contour, the
-lip ridge), 'strip' (inside the mouth), 'fixed' (far ring of the strip). Element kinds: 'lip',
+lip ridge), 'strip' (inside the mouth), 'fixed' (grounded, at the strip's far end). Element
+kinds: 'lip',
 'ridge' (touching the inner contour from the lip side; twice as stiff in the paper), 'strip'
 (soft). Node parts: 'upper', 'lower', 'corner' (mouth corners), used to fit the lip planes.
 """
@@ -229,7 +230,7 @@ def parametric_lip_mesh(n_around: int = 32, n_rings: int = 5, strip_width: int =
                         lower_height: float = 12.0, inner_width: float = 42.0,
                         opening: float = 3.0, jaw_radius: float = 45.0,
                         bulge: float = 4.0, strip_depth: float = 4.0,
-                        strip_rise: float = 1.0) -> LipMesh:
+                        strip_rise: float = 1.0, grounded: int = 4) -> LipMesh:
     """A synthetic lip mesh (mm): x to the talker's left (image right), y up, z forward.
 
     Rings run from the outer lip contour (ring 0) to the inner contour (ring n_rings - 1). Node k
@@ -237,8 +238,14 @@ def parametric_lip_mesh(n_around: int = 32, n_rings: int = 5, strip_width: int =
     points can be chosen at the same angle on the outer and inner contours. As in the paper
     (Sec. 2.4), a thin strip of `strip_width` x `strip_rows` nodes runs from the middle of the
     upper lip's inner contour back into the mouth (`strip_depth` mm back and `strip_rise` mm up
-    per row); its far row is fixed. The defaults give the paper's counts (Sec. 2.1): 32 x 5 +
-    11 x 4 = 204 nodes (612 DOF) and 2 x 32 x 4 + 2 x 10 x 4 = 336 triangles.
+    per row). `grounded` nodes of its far row are fixed, spread evenly and mirror-symmetric
+    (both ends always; `strip_width` fixes the whole row). The defaults give the paper's counts
+    (Sec. 2.1): 32 x 5 + 11 x 4 = 204 nodes (612 DOF) and 2 x 32 x 4 + 2 x 10 x 4 = 336
+    triangles; and with 4 nodes grounded, 612 - 12 = 600 free DOF, the "600 columns" of P
+    (Sec. 4.1). The paper is not consistent here: Sec. 2.3 says two nodes (6 DOF) must be
+    grounded (the six rigid-body motions of a 3-D body), Sec. 2.4 fixes "the nodes at the far
+    end of this strip" and Sec. 4.1 counts 600 columns, which is 4 nodes (12 DOF) of 204.
+    Our reading: 4 nodes at the far end of the strip are grounded, which gives the 600.
     """
     if n_around < 8 or n_around % 4:
         raise InputError(f"parametric_lip_mesh: n_around must be a multiple of 4 and >= 8, "
@@ -250,6 +257,10 @@ def parametric_lip_mesh(n_around: int = 32, n_rings: int = 5, strip_width: int =
     if strip_width < 3 or strip_width % 2 == 0 or strip_width > n_around // 2 + 1:
         raise InputError(f"parametric_lip_mesh: strip_width must be odd, >= 3 and at most "
                          f"{n_around // 2 + 1} (the upper lip), got {strip_width}")
+    if not 2 <= grounded <= strip_width or (grounded % 2 and grounded != strip_width):
+        raise InputError(f"parametric_lip_mesh: grounded must be even (mirror-symmetric), "
+                         f">= 2 and at most strip_width ({strip_width}), or strip_width "
+                         f"itself, got {grounded}")
     theta = 2 * np.pi * np.arange(n_around) / n_around
     c, s = np.cos(theta), np.sin(theta)
     outer = np.column_stack([width / 2 * c, np.where(s >= 0, upper_height, lower_height) * s])
@@ -287,7 +298,10 @@ def parametric_lip_mesh(n_around: int = 32, n_rings: int = 5, strip_width: int =
         q = _strip_quads(prev, cur, base[:, 0])
         tris += q
         kinds += ["strip"] * len(q)
-        role += ["fixed" if j == strip_rows else "strip"] * strip_width
+        row_role = np.full(strip_width, "strip", dtype=object)
+        if j == strip_rows:
+            row_role[_grounded_columns(strip_width, grounded)] = "fixed"
+        role += list(row_role)
         prev = cur
     nodes = np.vstack(nodes)
     part_ring = np.where(np.abs(s) < 1e-9, "corner", np.where(s > 0, "upper", "lower"))
@@ -298,6 +312,15 @@ def parametric_lip_mesh(n_around: int = 32, n_rings: int = 5, strip_width: int =
     fixed = np.where(role == "fixed")[0]
     return LipMesh(nodes, np.array(tris), fixed, role, part,
                    np.array(kinds, dtype=object), labels, name="parametric lip mesh")
+
+
+def _grounded_columns(width: int, grounded: int) -> np.ndarray:
+    """Columns of the far strip row that are grounded: `grounded` of `width`, evenly spread,
+    both ends included, mirror-symmetric (column c and width - 1 - c together)."""
+    if grounded >= width:
+        return np.arange(width)
+    half = np.round(np.linspace(0, width - 1, grounded)[:grounded // 2]).astype(int)
+    return np.unique(np.concatenate([half, width - 1 - half]))
 
 
 def extents(nodes: np.ndarray) -> np.ndarray:

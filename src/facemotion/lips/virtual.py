@@ -60,12 +60,13 @@ class VirtualLipTalker:
     activations: pd.DataFrame
 
 
-def gesture_fields(mesh: LipMesh, n_around: int) -> dict[str, np.ndarray]:
+def gesture_fields(mesh: LipMesh, n_around: int, strip_width: int = 11
+                   ) -> dict[str, np.ndarray]:
     """Displacement field (N, 3) in mm at unit activation of every gesture.
 
     Fields are functions of the rest position on the lip band (rings of `n_around` nodes); a
-    strip node takes the field of the inner-contour node at the head of its column, fading
-    linearly to zero at the fixed far row.
+    strip node (rows of `strip_width` nodes) takes the field of the inner-contour node at the
+    head of its column, fading linearly to zero at the far row, where the strip is grounded.
     """
     n = mesh.n_nodes
     band = np.where(np.isin(mesh.role, ("outer", "lip", "inner")))[0]
@@ -79,7 +80,10 @@ def gesture_fields(mesh: LipMesh, n_around: int) -> dict[str, np.ndarray]:
     strip = np.arange(n_band, n)
     if len(strip):
         inner = band[mesh.role[band] == "inner"]
-        width = int(np.sum(mesh.role == "fixed"))
+        width = strip_width
+        if len(strip) % width:
+            raise InputError(f"{mesh.name}: {len(strip)} strip nodes are not rows of "
+                             f"{width}")
         rows = len(strip) // width
         # column heads: the inner nodes nearest the strip's first row, in x order
         first = mesh.nodes[strip[:width]]
@@ -141,7 +145,7 @@ def make_virtual_talker(n_frames: int = 150, rate: float = 30.0, noise_mm: float
     mesh = parametric_lip_mesh(n_around=n_around, n_rings=n_rings, strip_width=strip_width,
                                strip_rows=strip_rows)
     rng = np.random.default_rng(seed)
-    fields = gesture_fields(mesh, n_around)
+    fields = gesture_fields(mesh, n_around, strip_width)
     act = _smooth_courses(rng, n_frames, rate, len(GESTURES))
     truth = np.einsum("fg,gnc->fnc", act, np.stack([fields[g] for g in GESTURES]))
     ks = [j * n_around // 8 for j in range(8)]

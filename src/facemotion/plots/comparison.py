@@ -29,9 +29,9 @@ def _number(s) -> float:
 
 
 def numeric_rows(table: pd.DataFrame) -> pd.DataFrame:
-    """Rows outside Table I whose paper and own values are both positive numbers, with
-    ``ratio`` = ours / paper."""
-    t = table[table["where"] != "Table I"].copy()
+    """Rows outside Table I (its cells and its counts against chance) whose paper and own
+    values are both positive numbers, with ``ratio`` = ours / paper."""
+    t = table[~table["where"].str.startswith("Table I")].copy()
     t["paper_num"] = t["paper_value"].map(_number)
     t["our_num"] = t["our_value"].map(_number)
     t = t[(t["paper_num"] > 0) & np.isfinite(t["our_num"]) & (t["our_num"] > 0)]
@@ -41,9 +41,10 @@ def numeric_rows(table: pd.DataFrame) -> pd.DataFrame:
 
 def plot_paper_comparison(table: pd.DataFrame) -> Figure:
     """Left: ours / paper for every numeric statement (log axis, 1.5x band; colour = verdict,
-    hollow = calibration target). Right: Table I's cells per dataset by verdict."""
+    hollow = not a prediction: a calibration target or a row by construction). Right: Table I's
+    cells per dataset by verdict."""
     require_columns(table, ("where", "statement", "paper", "paper_value", "our_value",
-                            "verdict", "calibration"), "paper comparison")
+                            "verdict", "class"), "paper comparison")
     num = numeric_rows(table)
     ti = table[table["where"] == "Table I"].copy()
     n = max(len(num), 1)
@@ -51,7 +52,7 @@ def plot_paper_comparison(table: pd.DataFrame) -> Figure:
     ax, bx = fig.subplots(1, 2, width_ratios=[2.4, 1.0])
     _draw_ratios(ax, num)
     table_legend = _draw_table_i(bx, ti)
-    set_title(bx, "L&M Table I: same marker (green),\nsame region (yellow), other (red)",
+    set_title(bx, "L&M Table I cells: the same\nmarker (green) or not (red)",
                  fontsize=9)
     w, h = fig.get_size_inches()
     pad = 0.04  # inches from the figure's edges, as constrained layout's
@@ -83,7 +84,7 @@ def _draw_ratios(ax, num: pd.DataFrame) -> None:
     for yi, (_, r) in zip(y, num.iterrows(), strict=True):
         c = VERDICT_COLOUR[r["verdict"]]
         x = float(np.clip(r["ratio"], *CLIP))
-        cal = r["calibration"] == "yes"
+        cal = r["class"] != "prediction"
         ax.plot([x], [yi], marker="o", ms=7, mec=c, mfc="white" if cal else c, mew=1.8,
                 zorder=3)
         if x != r["ratio"]:
@@ -103,7 +104,7 @@ def _draw_ratios(ax, num: pd.DataFrame) -> None:
     handles = [Line2D([], [], ls="", marker="o", mfc=c, mec=c, label=v)
                for v, c in VERDICT_COLOUR.items() if v != "not measured"]
     handles.append(Line2D([], [], ls="", marker="o", mfc="white", mec="0.3",
-                          label="calibration target"))
+                          label="calibration or by construction"))
     ax.legend(handles=handles, fontsize=7.5, loc="lower right")
 
 

@@ -45,7 +45,7 @@ def region_coefficients(labels: Sequence[str], X: pd.DataFrame) -> np.ndarray:
 
     Row i: the main marker i itself 1, the other main markers 0, and each secondary marker j
     X[main_i, j], the weight of main marker i in the prediction of j (x_j = sum_i X_ij a_i,
-    X = R11^-1 R12, paper Eq. 9).
+    X = R11^-1 R12, L&M Sec. III, eqs. 3-4).
     """
     labels = [str(s) for s in labels]
     mains = [str(s) for s in X.index]
@@ -69,8 +69,9 @@ def orthogonal_direction_coefficients(R: np.ndarray, order_labels: Sequence[str]
                                       labels: Sequence[str], n_pivots: int) -> np.ndarray:
     """Rows of R divided by their diagonal, reordered from pivot order to ``labels`` order.
 
-    A P = Q R (paper Eq. 4): column j of A P has component R[i, j] along the i-th orthogonal
-    direction q_i; R[i, j] / R[i, i] is marker j's motion along q_i relative to pivot i's.
+    A P = Q R (L&M Sec. III, unnumbered): column j of A P has component R[i, j] along the i-th
+    orthogonal direction q_i; R[i, j] / R[i, i] is marker j's motion along q_i relative to
+    pivot i's.
     """
     R = np.asarray(R, dtype=float)
     order_labels = [str(s) for s in order_labels]

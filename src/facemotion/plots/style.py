@@ -181,3 +181,31 @@ def keep_legible(fig, texts, inside=None, avoid=()) -> list:
         blocked.append(e)
         kept.append(t)
     return kept
+
+
+def figure_titles(fig) -> list[str]:
+    """The figure's title texts: its suptitle, then each axes' titles (left, centre, right)."""
+    out = []
+    sup = getattr(fig, "_suptitle", None)
+    if sup is not None and sup.get_text():
+        out.append(sup.get_text())
+    for ax in fig.axes:
+        out += [t for t in (ax.get_title(loc=loc) for loc in ("left", "center", "right")) if t]
+    return out
+
+
+def name_figure(fig, name: str) -> None:
+    """Make a figure of one dataset say which: unless a title already names it, the suptitle
+    (else the first titled axes' title, else a new suptitle) is prefixed with ``name:``."""
+    if any(name in t for t in figure_titles(fig)):
+        return
+    sup = getattr(fig, "_suptitle", None)
+    if sup is not None and sup.get_text():
+        sup.set_text(f"{name}: {sup.get_text()}")
+        return
+    for ax in fig.axes:
+        for loc in ("center", "left", "right"):
+            if ax.get_title(loc=loc):
+                ax.set_title(f"{name}: {ax.get_title(loc=loc)}", loc=loc)
+                return
+    fig.suptitle(name)

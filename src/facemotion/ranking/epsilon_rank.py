@@ -70,6 +70,28 @@ def noise_epsilon(sigma_mm: float, rows: int, n: int,
     return float(sigma_mm) * (np.sqrt(rows) + np.sqrt(n)) / r_scale(rows, normalisation)
 
 
+#: ``remainder_norms`` computes every ||R[k:, k:]||_2 up to this many markers (n SVDs of up
+#: to n x n: O(n^4)); beyond, NaN.
+REMAINDER_NORMS_MAX_N = 128
+
+
+def remainder_norms(ranking: MarkerRanking) -> np.ndarray:
+    """||R[k:, k:]||_2 for k = 0..n-1 (unnormalised mm; the remainder before pivot k + 1),
+    NaN when n exceeds REMAINDER_NORMS_MAX_N or R is not complete (randomized route)."""
+    n = ranking.n
+    if n > REMAINDER_NORMS_MAX_N or not np.isfinite(ranking.R).all():
+        return np.full(n, np.nan)
+    return np.array([spectral_norm(ranking.R[k:, k:]) for k in range(n)])
+
+
+def singular_values(ranking: MarkerRanking) -> np.ndarray:
+    """The singular values of A, largest first: those of R (A P = Q R, Q orthonormal); NaN
+    when R is not complete."""
+    if not np.isfinite(ranking.R).all():
+        return np.full(ranking.n, np.nan)
+    return scipy.linalg.svdvals(ranking.R, check_finite=False)
+
+
 RANK_COLUMNS = ["tolerance_mm", "r_normalisation", "epsilon_rank", "r22_norm_at_rank_mm",
                 "diagonal_count", "redundant_markers"]
 

@@ -175,6 +175,9 @@ class StabilityResult(NamedTuple):
         settled_sentences: in the given sentence order, the first n such that for every
             n' >= n the r_rms at this position is within ``tolerance`` (relative) of the
             all-sentence value; 1 if always within;
+        settled: False when settled_sentences is the last n (all sentences): the value only
+            agrees with itself there, so "settles at the last n" cannot be told from "never
+            settles" (censored: not within the sentences measured);
         settled_median, settled_p90, settled_max: the same over the random orders.
     agreement columns:
         n_sentences, k; agreement_fraction: share of random orders whose first k pivots (as a
@@ -246,6 +249,7 @@ def stability(
             "marker": [labels[j] for j in final_piv[:m]],
             "final_r_rms": final_r,
             "settled_sentences": settled0,
+            "settled": settled0 < S,
             "settled_median": q(settled_rep, 0.5),
             "settled_p90": q(settled_rep, 0.9),
             "settled_max": settled_rep.max(axis=0) if nrep else np.full(m, np.nan),

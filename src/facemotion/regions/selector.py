@@ -1,9 +1,9 @@
 """Marker selection with forced-in and excluded markers, as a scikit-learn estimator.
 
 ``MarkerSelector(k=..., force=..., exclude=...).fit(X)``: choose k main markers by QR with column
-pivoting (Lucero & Munhall 2008, Sec. II.C) of the displacement matrix A built from X, then
+pivoting (Lucero & Munhall 2008, Sec. III) of the displacement matrix A built from X, then
 ``transform`` keeps the main markers' columns and ``predict`` reconstructs every marker from
-them by A_s ~= A_m X, X = R11^-1 R12 (Sec. II.D).  X is frames x (marker, axis) columns, as
+them by A_s ~= A_m X, X = R11^-1 R12 (Sec. III, eqs. 3-4).  X is frames x (marker, axis) columns, as
 ``Recording.to_frame`` gives: an array (F, 3n), or a DataFrame whose columns are a
 (marker, axis) MultiIndex (the labels are taken from it).  Its rows become A's rows
 (frame, axis), frame-major; with ``center`` (default) the columns' training means are

@@ -180,12 +180,50 @@ def block(page: str, name: str, studies: Sequence[str], source: str,
     return register
 
 
+def _asked(rank: pd.DataFrame) -> pd.DataFrame:
+    """The rows of rank.tsv at the tolerances the setting asked for (not the paper's epsilon
+    or the noise level, added beside them)."""
+    from facemotion.ranking.result import ASKED
+
+    return rank[rank["tolerance_from"] == ASKED] if "tolerance_from" in rank else rank
+
+
 def _eps_ranks(rank: pd.DataFrame) -> str:
-    return " / ".join(rank["epsilon_rank"].tolist())
+    return " / ".join(_asked(rank)["epsilon_rank"].tolist())
 
 
 def _tolerances(rank: pd.DataFrame) -> str:
-    return " / ".join(f"{float(t):g}" for t in rank["tolerance_mm"])
+    return " / ".join(f"{float(t):g}" for t in _asked(rank)["tolerance_mm"])
+
+
+def _headline(src: Sources, study: str) -> str:
+    """Per dataset, beyond the papers: the noise level, the epsilon-rank there, and k for the
+    target held-out error with its interval (rank.tsv)."""
+    from facemotion.regions.target import NOISE_LEVEL
+
+    rows, target, level = [], "", ""
+    for label, _, rank, _ in _study_datasets(src, study):
+        noise = rank[rank["tolerance_from"] == NOISE_LEVEL]
+        first = rank.iloc[0]
+        target = f"{float(first['target_error_mm']):g}"
+        level = f"{float(first['interval_level']):.0%}"
+        k = first["k_for_target"]
+        if int(first["heldout_sentences"]) == 0:
+            kcell = "— (no held-out sentences)"
+        elif not k:
+            kcell = "not reached"
+        elif not first["k_for_target_low"]:
+            kcell = f"{k} (no interval: {first['heldout_sentences']} held-out sentence(s))"
+        else:
+            hi = first["k_for_target_high"] or "more"
+            kcell = f"{k} ({first['k_for_target_low']}-{hi})"
+        rows.append([label, first["markers"],
+                     f"{_num(float(first['noise_mm']))} ({first['noise_source']})",
+                     noise["epsilon_rank"].iloc[0] if len(noise) else "—", kcell,
+                     first["heldout_sentences"]])
+    return _table(["dataset", "markers", "noise, mm per coordinate (estimate)",
+                   "epsilon-rank at the noise", f"k for {target} mm ({level} interval)",
+                   "held-out sentences"], rows, "lrllll")
 
 
 def _study_datasets(src: Sources, study: str):
@@ -221,20 +259,26 @@ def _readme_summary(src: Sources) -> str:
     from facemotion.papers.lucero_munhall import EPSILON_MM
     from facemotion.papers.table import VERDICTS
 
-    rows = []
+    rows, head = [], "k for the target"
     for label, folder, rank, r_values in _study_datasets(src, "paper"):
         curve = _curve_at(folder, [1, 10])
         err = "—" if not curve or 10 not in curve else (
             f"{_num(curve[10]['mean_abs_error_mm'])} mm")
-        rows.append([label, _paper_eps(rank)["epsilon_rank"], _pivots(r_values), err])
+        first = rank.iloc[0]
+        head = (f"k for {float(first['target_error_mm']):g} mm "
+                f"({float(first['interval_level']):.0%} interval)")
+        lo, hi = first["k_for_target_low"], first["k_for_target_high"] or "more"
+        kt = (f"{first['k_for_target']} ({lo}-{hi})" if lo else first["k_for_target"] or "—")
+        rows.append([label, _paper_eps(rank)["epsilon_rank"], _pivots(r_values), err, kt])
     out = [_table(["dataset", f"epsilon-rank (ε = {EPSILON_MM:g} mm)", "first 5 pivots",
-                   "held-out error, k = 10"], rows, "lrll")]
+                   "held-out error, k = 10", head], rows, "lrlll")]
     table = _tsv(src.root("paper") / "tables" / "paper_comparison.tsv")
-    counts = summary_counts(table[table["calibration"] != "yes"])
-    crow = [[r["paper"], r["part"]] + [str(int(r[v])) for v in VERDICTS]
+    counts = summary_counts(table)
+    crow = [[r["paper"], r["class"], r["part"]] + [str(int(r[v])) for v in VERDICTS]
             for _, r in counts.iterrows()]
-    out += ["", "The papers' quantitative statements that were not calibration targets, by "
-            "verdict:", "", _table(["paper", "statements", *VERDICTS], crow, "llrrrr")]
+    out += ["", "The papers' quantitative statements by class (predictions first: only they "
+            "test the study) and verdict:", "",
+            _table(["paper", "class", "statements", *VERDICTS], crow, "lllrrrr")]
     return "\n".join(out)
 
 
@@ -258,7 +302,7 @@ def _lm_epsilon_rank(src: Sources) -> str:
         tol = _tolerances(rank)
         at = _paper_eps(rank)
         rows.append([label, f"{int(at['rows']):,} x {at['markers']}", at["route"],
-                     _eps_ranks(rank), " / ".join(rank["diagonal_count"]),
+                     _eps_ranks(rank), " / ".join(_asked(rank)["diagonal_count"]),
                      _num(at["r22_norm_at_rank_mm"]), at["redundant_markers"] or "—"])
     return _table(["dataset", "A (rows x markers)", "route", f"epsilon-rank at {tol} mm",
                    "diagonal count", "‖R22‖₂ at the rank, ε = 0.5 mm (mm)",
@@ -345,6 +389,11 @@ def _lm_optimality(src: Sources) -> str:
             "above the optimum.")
 
 
+@block(LM_PAGE, "lm-headline", ["paper"], "results/paper/<dataset>/qr/rank.tsv")
+def _lm_headline(src: Sources) -> str:
+    return _headline(src, "paper")
+
+
 @block(LM_PAGE, "lm-stability", ["paper"],
        "results/paper/<dataset>/qr/stability.tsv and qr/stability_agreement.tsv")
 def _lm_stability(src: Sources) -> str:
@@ -361,7 +410,11 @@ def _lm_stability(src: Sources) -> str:
         for k, m in agree_cols:
             sel = agree[(agree["k"] == k) & (agree["n_sentences"] == m)]
             cells.append(_pct(sel["agreement_fraction"].iloc[0], 0) if len(sel) else "—")
-        rows.append([label, str(n), str(max(int(x) for x in stab["settled_sentences"])),
+        settled = stab["settled"].str.lower() == "true" if "settled" in stab else None
+        worst = (f"not within {int(agree['n_sentences'].astype(int).max())}"
+                 if settled is not None and not settled.all()
+                 else str(max(int(x) for x in stab["settled_sentences"])))
+        rows.append([label, str(n), worst,
                      str(max(int(float(x)) for x in stab["settled_median"])), *cells,
                      agree["n_replicates"].iloc[0]])
     header = ["dataset", "pivots followed", "settled after (given order)",
@@ -426,10 +479,10 @@ VIEWS = ("xyz_8_points", "yz_all_points", "xy_all_points")
 COVARIANCES = ("10_modes", "full_covariance")
 
 
-def _cell(rec: pd.DataFrame, view: str, cov: str, column: str, noise: str = "noise_free",
+def _cell(rec: pd.DataFrame, view: str, cov: str, column: str, reading: str = "noise_term",
           point_set: str = "tracked_points") -> str:
-    sel = rec[(rec["view"] == view) & (rec["covariance"] == cov) & (rec["noise"] == noise)
-              & (rec["point_set"] == point_set)]
+    sel = rec[(rec["view"] == view) & (rec["covariance"] == cov)
+              & (rec["estimator_reading"] == reading) & (rec["point_set"] == point_set)]
     return _num(sel[column].iloc[0]) if len(sel) else "—"
 
 
@@ -463,10 +516,33 @@ def _bp_table_1_more(src: Sources) -> str:
         for view in VIEWS:
             rows.append([s, BP_VIEW[view]]
                         + [_cell(rec, view, c, "mse_per_dof_mm2") for c in COVARIANCES]
-                        + [_cell(rec, view, c, "mse_per_dof_model_units2", "regularised")
+                        + [_cell(rec, view, c, "mse_per_dof_model_units2", "pseudo_inverse")
                            for c in COVARIANCES])
     return _table(["lip subject", "view", "mm², 10 modes", "mm², full cov.",
-                   "regularised σ², 10 modes", "regularised σ², full cov."], rows, "llrrrr")
+                   "pseudo-inverse (σ² = 0), 10 modes", "pseudo-inverse (σ² = 0), full cov."],
+                  rows, "llrrrr")
+
+
+@block(BP_PAGE, "bp-table-1-seeds", ["paper"], "results/paper/lips/table1_seeds.tsv")
+def _bp_table_1_seeds(src: Sources) -> str:
+    from facemotion.papers.basu_pentland import BP_TABLE_1, READING_NAMES
+
+    t = _tsv(src.root("paper") / "lips" / "table1_seeds.tsv")
+    ratios = {v: BP_TABLE_1[(v, "full_covariance")] / BP_TABLE_1[(v, "10_modes")]
+              for v in VIEWS}
+    rows = [["paper (Table 1)", "—", "—"] + [_num(ratios[v]) for v in VIEWS]
+            + ["yes" if ratios["xy_all_points"] > 1 else "no"]]
+    for (ls, seed, reading), g in t.groupby(["lip_subject", "seed", "estimator_reading"],
+                                            sort=False):
+        cell = g.set_index("view")
+        name = READING_NAMES.get(reading, reading)
+        if cell["chosen_reading"].iloc[0] == "True":
+            name += " (chosen)"
+        rows.append([ls, seed, name] + [_num(cell.loc[v, "full_over_modes"]) for v in VIEWS]
+                    + ["yes" if cell.loc["xy_all_points", "modes_better"] == "True" else "no"])
+    return _table(["lip subject", "seed", "estimator reading", "xyz of 8 points",
+                   "yz of all points", "xy of all points", "frontal: 10 modes better"],
+                  rows, "lrlrrrl")
 
 
 @block(BP_PAGE, "bp-heldout-points", ["paper"],
@@ -543,16 +619,18 @@ def _calibration(src: Sources) -> str:
 
 
 @block(METHODS_PAGE, "calibration-rows", ["paper"], "results/paper/tables/paper_comparison.tsv "
-       "(rows with calibration = yes)")
+       "(rows of class calibration)")
 def _calibration_rows(src: Sources) -> str:
     table = _tsv(src.root("paper") / "tables" / "paper_comparison.tsv")
-    cal = table[table["calibration"] == "yes"]
+    cal = table[table["class"] == "calibration"]
     rows = [[r["row"], "L&M" if r["paper"].startswith("Lucero") else "B&P", r["where"],
              r["statement"], r["paper_value"], r["our_value"], r["verdict"]]
             for _, r in cal.iterrows()]
-    n_pred = len(table) - len(cal)
+    n_pred = int((table["class"] == "prediction").sum())
+    n_cons = int((table["class"] == "by construction").sum())
     return (_table(["#", "paper", "where", "statement", "paper", "ours", "verdict"], rows)
-            + f"\n\nThe other {n_pred} rows of the comparison table are predictions.")
+            + f"\n\nOf the other rows of the comparison table, {n_pred} are predictions and "
+            f"{n_cons} follow by construction (arithmetic, a theorem, or the design).")
 
 
 # docs/your-data.md ----------------------------------------------------------------------------
@@ -757,6 +835,7 @@ def _outputs_manifest(src: Sources) -> str:
             parts[0] = "{dataset}"
         elif parts[0] == "lips" and len(parts) > 2:
             parts[1] = "{lip_subject}"
+            parts[-1] = re.sub(r"_seed\d+\.", "_seed{seed}.", parts[-1])
         elif parts[0] == "virtual" and len(parts) > 2:
             stem = parts[2].split(".")[0]
             parts[1:] = ["{subject}", re.sub(r"_s\d+$", "_s{nn}", stem)
@@ -808,6 +887,11 @@ def _heldout_table(src: Sources, study: str, ks: Sequence[int]) -> str:
     return _table(["dataset", *[f"k = {k}" for k in ks]], rows, "l" + "r" * len(ks))
 
 
+@block(REAL_PAGE, "real-headline", ["real"], "results/real/<dataset>/qr/rank.tsv")
+def _real_headline(src: Sources) -> str:
+    return _headline(src, "real")
+
+
 @block(REAL_PAGE, "real-heldout", ["real"], "results/real/<dataset>/eval/error_curve.tsv")
 def _real_heldout(src: Sources) -> str:
     return _heldout_table(src, "real", [1, 5, 10, 20])
@@ -854,6 +938,11 @@ def _dense_datasets(src: Sources) -> str:
                   "first 5 pivots"], rows, "llrrlrl")
     return out + ("\n\nWhat `rank.tsv` says where there are fewer rows than points:\n\n"
                   + "\n".join(notes) if notes else "")
+
+
+@block(DENSE_PAGE, "dense-headline", ["dense"], "results/dense/<dataset>/qr/rank.tsv")
+def _dense_headline(src: Sources) -> str:
+    return _headline(src, "dense")
 
 
 @block(DENSE_PAGE, "dense-heldout", ["dense"], "results/dense/<dataset>/eval/error_curve.tsv")

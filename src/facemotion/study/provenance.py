@@ -62,20 +62,26 @@ TABLE_SCHEMAS: dict[str, tuple[str, tuple[str, ...]]] = {
     "selected_markers": ("1", ("order",)),
     "lip_modes": ("1", ("mode", "variance", "cumulative_fraction")),
     "lip_fit_residuals": ("1", ("frame",)),
-    "lip_reconstruction": ("2", ("lip_subject", "view", "point_set", "covariance", "noise",
-                                 "noise_var_model_units2", "n_observed_dof", "n_evaluated_dof",
+    "lip_reconstruction": ("3", ("lip_subject", "view", "point_set", "covariance", "noise",
+                                 "estimator_reading", "noise_var_model_units2",
+                                 "n_observed_dof", "n_evaluated_dof",
                                  "mse_per_dof_model_units2", "mse_per_dof_mm2",
-                                 "paper_definition", "paper_mse_per_dof_model_units2")),
+                                 "chosen_reading", "paper_definition",
+                                 "paper_mse_per_dof_model_units2")),
+    "lip_table1_seed": ("1", ("lip_subject", "seed", "estimator_reading", "chosen_reading",
+                              "view", "full_over_modes", "modes_better")),
+    "lip_table1_seeds": ("1", ("lip_subject", "seed", "estimator_reading", "chosen_reading",
+                               "view", "full_over_modes", "modes_better")),
     "lip_model_counts": ("1", ("lip_subject", "quantity", "paper_value", "our_value", "unit",
                                "paper_place")),
     "summary": ("1", ()),
-    "paper_comparison": ("1", ("row", "paper", "where", "statement", "paper_value", "our_value",
-                               "measure", "output", "verdict", "rule", "calibration")),
+    "paper_comparison": ("2", ("row", "paper", "where", "statement", "class", "paper_value",
+                               "our_value", "measure", "output", "verdict", "rule")),
     "manifest": ("1", ("path", "sha256", "schema_id", "schema_version", "sidecar")),
 }
 
 
-FIGURE_SCHEMA_VERSION = "1"
+FIGURE_SCHEMA_VERSION = "2"
 
 
 _INPUT_DIGESTS: dict[tuple, str] = {}  # (device, inode, size, mtime, ctime) -> sha256
@@ -160,9 +166,11 @@ def sidecar_path(path: str | os.PathLike) -> Path:
     return Path(sidecar(path))
 
 
-def _write_sidecar(prov: Provenance, schema_id: str, version: str, outputs: list[str]) -> Path:
+def _write_sidecar(prov: Provenance, schema_id: str, version: str, outputs: list[str],
+                   extra: dict | None = None) -> Path:
     side = sidecar_path(outputs[0])
-    text = json.dumps(prov.sidecar(schema_id, version, outputs), indent=2, sort_keys=False)
+    text = json.dumps({**prov.sidecar(schema_id, version, outputs), **(extra or {})}, indent=2,
+                      sort_keys=False)
     atomic_write_bytes(side, (text + "\n").encode())
     return side
 
@@ -187,13 +195,34 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, schema_id: str,
     return _write_sidecar(prov, schema_id, version, [str(path)])
 
 
+def figure_subject(prov: Provenance) -> str | None:
+    """What a per-dataset job's figure shows: the dataset's label (its ``label`` param, e.g.
+    "S2a*"), else the dataset or lip subject wildcard; None for an aggregation."""
+    wc = prov.config.get("wildcards") or {}
+    params = prov.config.get("params") or {}
+    if "dataset" in wc:
+        return str(params.get("label") or wc["dataset"])
+    for key in ("lip_subject", "subject"):
+        if key in wc:
+            return str(wc[key])
+    return None
+
+
 def save_figure(fig, paths: Iterable[str | os.PathLike], schema_id: str,
                 prov: Provenance) -> Path:
     """Save one figure in every format named by ``paths`` (by suffix: png, pdf or svg; the
-    rules name the formats of the ``figures.formats`` setting), plus one sidecar."""
+    rules name the formats of the ``figures.formats`` setting), plus one sidecar.  A figure
+    of one dataset is titled with it (``plots.style.name_figure``) and its sidecar records the
+    titles."""
+    from facemotion.plots.style import figure_titles, name_figure
+
     paths = [str(p) for p in paths]
     if not paths:
         raise ValueError("save_figure needs at least one path")
+    subject = figure_subject(prov)
+    if subject:
+        name_figure(fig, subject)
+    titles = figure_titles(fig)
     for i, p in enumerate(paths):
         atomic_write_bytes(p, figure_bytes(fig, Path(p).suffix.lstrip(".").lower()))
         if i == 0 and len(paths) > 1 and fig.get_layout_engine() is not None:
@@ -203,7 +232,8 @@ def save_figure(fig, paths: Iterable[str | os.PathLike], schema_id: str,
     plt = sys.modules.get("matplotlib.pyplot")  # the plots build Figures without pyplot:
     if plt is not None:  # importing it only to close them would cost every job ~0.3 s
         plt.close(fig)
-    return _write_sidecar(prov, f"figure/{schema_id}", FIGURE_SCHEMA_VERSION, paths)
+    return _write_sidecar(prov, f"figure/{schema_id}", FIGURE_SCHEMA_VERSION, paths,
+                          {"titles": titles})
 
 
 def write_artifact(path: str | os.PathLike, data: bytes, schema_id: str, prov: Provenance,

@@ -25,7 +25,7 @@ from facemotion.io.registry import FORMAT_NAMES
 SHEET_COLUMNS = ("subject", "recordings", "format", "head_markers", "exclude_markers")
 OPTIONAL_COLUMNS = ("units", "include_markers", "simulate", "seed", "talker_seed",
                     "n_sentences", "sentence_duration", "segments", "subject_prefix",
-                    "copy_markers")
+                    "copy_markers", "rate")
 DEFAULT_HELDOUT_FRACTION = 0.25
 _ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
@@ -60,6 +60,7 @@ class Subject:
     segment_sources: list[str] = field(default_factory=list)  # TextGrids / tables read
     subject_prefix: str | None = None
     copy_markers: list[tuple[str, str]] = field(default_factory=list)
+    rate: float | None = None   # declared frame rate (Hz), for files timed by time stamps
 
     @property
     def sentences(self) -> list[Segment]:
@@ -181,6 +182,11 @@ def subject_from_row(row: pd.Series, sid: str, where: str, path: Path,
         recordings = recorded_files(_cell(row, "recordings"), fmt, sid, path.parent,
                                     shared_data, where)
     prefix = _cell(row, "subject_prefix")
+    rate = None
+    if _cell(row, "rate") is not None:
+        from facemotion.io.registry import check_rate
+
+        rate = check_rate(_cell(row, "rate"), f"{where} (subject {sid!r})")
     segments, sources = None, []
     if _cell(row, "segments") is not None:
         if design is not None:
@@ -197,7 +203,7 @@ def subject_from_row(row: pd.Series, sid: str, where: str, path: Path,
         include_markers=_labels_cell(row, "include_markers", where, sid),
         units=units, simulate=design, seed=seed, talker_seed=talker_seed,
         n_sentences=n_sentences, sentence_duration=sentence_duration,
-        copy_markers=copy_markers)
+        copy_markers=copy_markers, rate=rate)
 
 
 def _sentence_duration(duration: str | None, where: str) -> tuple[float, float] | None:
@@ -395,6 +401,8 @@ def dataset_params(subjects: dict[str, Subject], datasets: dict[str, Dataset],
         "sentence_names": subj.sentence_names,
         "subject_prefix": subj.subject_prefix,
         "segments": None if subj.segments is None else [s.to_param() for s in subj.segments],
+        # only when declared, so that the params of sheets without it stay as they were
+        **({"rate": subj.rate} if subj.rate is not None else {}),
     }
 
 

@@ -113,7 +113,10 @@ def lip_lines(tables: Mapping[str, object]) -> list[str]:
         rows = t[(t["paper_definition"].astype(str) == "True")]
         if rows.empty:
             continue
-        out.append(f"  {subject}: view, then 10 modes / full covariance (paper's value)")
+        reading = ", ".join(sorted(set(rows["estimator_reading"].astype(str)))) \
+            if "estimator_reading" in rows.columns else "not stated"
+        out.append(f"  {subject}: view, then 10 modes / full covariance (paper's value); "
+                   f"estimator reading {reading}")
         for view in dict.fromkeys(rows["view"]):
             cells = []
             for cov in ("10_modes", "full_covariance"):
@@ -150,18 +153,34 @@ def take_lines(sentences: Mapping[str, object]) -> list[str]:
     return out
 
 
+def comparison_lines(table) -> list[str]:
+    """The papers' statements by class and verdict, predictions first (only they test the
+    study)."""
+    from facemotion.papers.table import CLASSES, VERDICTS
+
+    out = ["The papers' statements by class, then verdict (tables/paper_comparison.tsv):"]
+    for cls in CLASSES:
+        rows = table[table["class"] == cls]
+        if len(rows):
+            counts = rows["verdict"].value_counts()
+            out.append(f"  {cls:<16} {len(rows):>3}: " + ", ".join(
+                f"{int(counts.get(v, 0))} {v}" for v in VERDICTS if counts.get(v, 0)))
+    return out
+
+
 def study_summary(study: str, root: str, rank_summary=None, selected=None,
                   lips: Mapping[str, object] | None = None, skipped: Sequence[str] = (),
-                  sentences: Mapping[str, object] | None = None,
-                  builtin_lips: Sequence[str] = ()) -> str:
+                  dataset_sentences: Mapping[str, object] | None = None,
+                  builtin_lips: Sequence[str] = (), comparison=None) -> str:
     """The closing summary: where the results are and the headline numbers.
 
-    sentences: per dataset, its sentences table (which trained, which were held out).
+    dataset_sentences: per dataset, its sentences table (which trained, which were held out).
     builtin_lips: lip subjects that are the built-in virtual lip talker in a study of the
-    user's own sheet: not the user's data, so their Table 1 is left out with a pointer."""
+    user's own sheet: not the user's data, so their Table 1 is left out with a pointer.
+    comparison: the papers' comparison table (tables/paper_comparison.tsv)."""
     lines = [f"facemotion study '{study}': every output is under {root}/"]
-    if sentences:
-        lines += ["Sentences (<dataset>/data/sentences.tsv):", *take_lines(sentences)]
+    if dataset_sentences:
+        lines += ["Sentences (<dataset>/data/sentences.tsv):", *take_lines(dataset_sentences)]
     if rank_summary is not None and selected is not None and len(rank_summary):
         lines += ["Lucero & Munhall 2008 (tables/rank_summary.tsv, tables/selected_markers.tsv):",
                   *rank_lines(rank_summary, selected), *READING]
@@ -174,6 +193,8 @@ def study_summary(study: str, root: str, rank_summary=None, selected=None,
     if lip:
         lines += ["Basu & Pentland 1997 Table 1, MSE per degree of freedom in model units^2 "
                   "(lips/<subject>/reconstruction.tsv):", *lip]
+    if comparison is not None and len(comparison):
+        lines += comparison_lines(comparison)
     for s in skipped:
         lines.append(f"Skipped: {s}")
     lines += [f"Every output with its checksum: {root}/manifest.tsv"]
