@@ -175,13 +175,13 @@ GATHER = {"summarise_study", "write_manifest", "all", "compare_with_papers"}
 
 
 @pytest.mark.parametrize("setting, reruns", [
-    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers", "summarise_ranking"}),
+    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers", "summarise_ranking", "render_face_page"}),
     ("qr:\n  table_orders: 5\n", {"summarise_ranking"}),
     ("qr:\n  noise_mm: 0.3\n", {"find_redundant_markers"}),
     ("qr:\n  optimality_k_max: 2\n", {"compare_subsets"}),
     ("qr:\n  replicates: 10\n", {"sweep_sentences"}),
     ("eval:\n  trajectory_k: 3\n", {"evaluate_heldout", "summarise_heldout"}),
-    ("fit:\n  grid_n: 30\n", {"fit_regions"}),
+    ("fit:\n  grid_n: 30\n", {"fit_regions", "render_face_page"}),
     ("animation:\n  grid_n: 12\n", {"animate_heldout"}),
     ("gaps:\n  max_interp_s: 0.2\n", None),  # the data: everything after loading
 ])
@@ -204,7 +204,7 @@ def dry_run_jobs(proc) -> list[tuple[str, str]]:
 
 
 # the aggregations: tables and figures across datasets, the comparison, summary and manifest
-AGGREGATIONS = GATHER | {"summarise_ranking", "summarise_heldout"}
+AGGREGATIONS = GATHER | {"summarise_ranking", "summarise_heldout", "render_face_page"}
 
 
 def test_a_new_subject_runs_only_its_own_jobs_and_the_aggregations(smoke_runs, tmp_path):

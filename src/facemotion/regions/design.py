@@ -246,10 +246,11 @@ class MarkerSetDesign:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """The saved file's content (docs/design.md)."""
+        """The saved file's content (docs/design.md); NaN (e.g. the error at k when no k
+        reaches the target) is null."""
         def arr(a):
             return None if a is None else np.round(np.asarray(a, float), 9).tolist()
-        return {
+        return _json_safe({
             "format": FILE_FORMAT, "version": FILE_VERSION, "k": self.k,
             "selected": self.selected, "predicted": self.predicted, "labels": self.labels,
             "coefficients": {"rows": list(self.coef.index), "columns": list(self.coef.columns),
@@ -262,7 +263,7 @@ class MarkerSetDesign:
             "sentences": self.sentences, "subjects": self.subjects,
             "head_markers": self.head_markers, "head_reference_mm": arr(self.head_reference),
             "neutral_mm": arr(self.neutral), "rate_hz": self.rate, "settings": self.settings,
-        }
+        })
 
     def save(self, path) -> None:
         """Write the set as JSON (docs/design.md), whole or not at all."""
@@ -303,7 +304,9 @@ class MarkerSetDesign:
                 error_low_mm=float(d["error_low_mm"]), error_high_mm=float(d["error_high_mm"]),
                 level=float(d["level"]), per_marker=pd.DataFrame(d["per_marker"]),
                 candidates=pd.DataFrame(d["candidates"]),
-                k_for_target=None if kft is None else KForError(**kft),
+                k_for_target=None if kft is None else KForError(**{
+                    **kft, "error_at_k_mm": float("nan") if kft["error_at_k_mm"] is None
+                    else kft["error_at_k_mm"]}),
                 sentences=list(d["sentences"]), subjects=d["subjects"],
                 head_markers=list(d["head_markers"]),
                 head_reference=None if d["head_reference_mm"] is None
@@ -312,6 +315,17 @@ class MarkerSetDesign:
                 rate=d["rate_hz"], settings=d["settings"])
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"{p}: marker-set file lacks or garbles a field ({e})") from None
+
+
+def _json_safe(value):
+    """NaN and infinities as None, recursively (JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 def _candidates(disp, k: int, force, exclude, symmetric: bool, max_subsets: int
