@@ -204,3 +204,19 @@ def test_expanded_percentile_tail():
     assert expanded_alpha(0.95, 100000) == pytest.approx(0.025, rel=1e-3)   # the plain one
     assert expanded_alpha(0.95, 5) < expanded_alpha(0.95, 20) < 0.025
     assert expanded_alpha(0.95, 1) == pytest.approx(0.025)
+
+
+def test_an_unreached_target_is_said_and_saved(pilot, tmp_path):
+    from facemotion.regions.marker_set import protocol_text
+
+    ms = design_markers(pilot, target_mm=1e-6, resamples=50, on_unreached="largest",
+                        max_subsets=0)
+    assert ms.settings["target_reached"] is False and ms.k == ms.k_for_target.k_last
+    d = ms.to_dict()
+    assert d["k_for_target"]["k"] is None and d["k_for_target"]["error_at_k_mm"] is None
+    json.dumps(d, allow_nan=False)
+    ms.save(tmp_path / "set.json")
+    assert MarkerSetDesign.load(tmp_path / "set.json").k_for_target.k is None
+    assert "no number of markers reached the target" in protocol_text(ms)
+    with pytest.raises(InputError, match="on_unreached"):
+        design_markers(pilot, on_unreached="maybe")
