@@ -1,7 +1,11 @@
 # Two commands do everything on a fresh machine:
 #   make study   # install (first time) and run the whole default study -> results/paper/
 #   make test    # install (first time, with dev tools) and run the tests
-PY ?= python3.11
+# The first Python of 3.11 or newer found (python3.11, then newer, then python3); PY= overrides.
+ifeq ($(origin PY),undefined)
+PY := $(firstword $(foreach p,python3.11 python3.12 python3.13 python3.14 python3,\
+        $(if $(shell command -v $(p) 2>/dev/null),$(p))))
+endif
 VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= 2
@@ -9,14 +13,18 @@ CORES ?= 2
 .PHONY: study test real dense smoke talkers report real-report dense-report smoke-report talkers-report bench lint venv cluster clean constraints docs pages pages-check
 
 $(BIN)/python:
-	@command -v $(PY) >/dev/null 2>&1 || { echo "need $(PY) (Python 3.11)"; exit 1; }
+	@command -v $(PY) >/dev/null 2>&1 || { echo "need Python 3.11 or newer (PY=$(PY) not found)"; exit 1; }
+	@$(PY) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
+		{ echo "need Python 3.11 or newer; $(PY) is $$($(PY) --version 2>&1)"; exit 1; }
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 
-# The library, the workflow extra and the dev tools, at the exact versions of constraints.txt
+# The library, the workflow extra, the dev tools and the optional bridges the tests exercise
+# (scikit-learn, pyomeca, kineticstoolkit, plotly), at the exact versions of constraints.txt
 # (pyproject.toml only gives ranges).
+EXTRAS := workflow,dev,sklearn,pyomeca,kineticstoolkit,plotly
 $(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/python
-	$(BIN)/pip install --quiet -c constraints.txt -e '.[workflow,dev]'
+	$(BIN)/pip install --quiet -c constraints.txt -e '.[$(EXTRAS)]'
 	touch $@
 
 venv: $(VENV)/.installed
@@ -24,7 +32,7 @@ venv: $(VENV)/.installed
 # The SLURM executor plugin too, for profiles/slurm (docs/workflow.md). Not in `venv`:
 # Snakemake imports every installed executor plugin when it starts.
 $(VENV)/.installed-cluster: $(VENV)/.installed
-	$(BIN)/pip install --quiet -c constraints.txt -e '.[workflow,dev,cluster]'
+	$(BIN)/pip install --quiet -c constraints.txt -e '.[$(EXTRAS),cluster]'
 	touch $@
 
 cluster: $(VENV)/.installed-cluster

@@ -18,6 +18,7 @@ include: "workflow/rules/lips.smk"
 include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/compare.smk"
 include: "workflow/rules/stream.smk"
+include: "workflow/rules/design.smk"
 
 
 # One job per dataset (per virtual subject, lip subject, k, sweep point) through wildcards;
@@ -40,6 +41,7 @@ localrules:
     compare_with_papers,
     summarise_study,
     write_manifest,
+    render_face_page,
 
 
 rule all:

@@ -16,9 +16,12 @@ def main(sm, log, prov):
         selected = pd.read_csv(sm.input.selected, sep="\t", dtype=str, keep_default_na=False)
     lips = {ls: pd.read_csv(path, sep="\t")
             for ls, path in zip(p.lip_subjects, sm.input.lips, strict=True)}
+    sentences = {label: pd.read_csv(path, sep="\t", dtype={"sentence": str})
+                 for label, path in zip(p.dataset_labels, sm.input.sentences, strict=True)}
     comparison = (pd.read_csv(sm.input.comparison, sep="\t", dtype=str, keep_default_na=False)
                   if "comparison" in sm.input.keys() else None)
     text = study_summary(p.study, p.root, rank, selected, lips, skipped=p.skipped,
+                         dataset_sentences=sentences, builtin_lips=p.builtin_lips,
                          comparison=comparison)
     write_artifact(sm.output.summary, text.encode(), "study_summary", prov)
 

@@ -104,15 +104,31 @@ def test_load_splits_training_and_heldout(tmp_path):
         p = tmp_path / f"s{i}.csv"
         write_csv(p, _rec(seed=i))
         paths.append(p)
-    data = fm.load(paths, heldout=[1])
+    data = fm.load(paths, heldout_sentences=[2])     # counting from 1, as the config
     assert data.train.sentences == ["s0", "s2"]
     assert data.heldout.sentences == ["s1"]
     assert data.sentences["role"].tolist() == ["train", "train", "heldout"]
     assert fm.load(paths[0]).heldout is None
-    with pytest.raises(fm.InputError, match="heldout"):
-        fm.load(paths, heldout=[0, 1, 2])
-    with pytest.raises(fm.InputError, match="out of range"):
+    with pytest.raises(fm.InputError, match="heldout_sentences: every recording is held out"):
+        fm.load(paths, heldout_sentences=[1, 2, 3])
+    with pytest.raises(fm.InputError, match=r"sentence number\(s\) \[0\] out of range .* from 1"):
+        fm.load(paths, heldout_sentences=[0])
+    # the 0.2 form counts from 0, with a warning, for one release
+    with pytest.warns(DeprecationWarning, match="counts sentences from 0"):
+        old = fm.load(paths, heldout=[1])
+    assert old.heldout.sentences == ["s1"]
+    with pytest.warns(DeprecationWarning), pytest.raises(fm.InputError, match="out of range"):
         fm.load(paths, heldout=[5])
+    with pytest.raises(fm.InputError, match="give one of them"):
+        fm.load(paths, heldout=[1], heldout_sentences=[2])
+
+
+def test_missing_files_are_file_not_found_and_facemotion_errors(tmp_path):
+    for call in (lambda: fm.read(tmp_path / "absent.c3d"),
+                 lambda: fm.load([tmp_path / "absent.csv"])):
+        with pytest.raises(FileNotFoundError, match="absent") as err:
+            call()
+        assert isinstance(err.value, fm.InputError)
 
 
 def test_lips_fit_modes_reconstruct_recover_a_planted_low_rank_motion():

@@ -11,7 +11,7 @@ From a file to the paper's quantities::
     import facemotion as fm
 
     take = fm.read("take.c3d")                      # labels, points (frames, markers, 3) mm
-    data = fm.load(["s1.c3d", "s2.c3d"], heldout=[1],
+    data = fm.load(["s1.c3d", "s2.c3d"], heldout_sentences=[2],
                    head_markers=["ForeHead_M", "NoseTop", "Leye_Inside"],
                    exclude_markers=["ForeHead_M", "NoseTop", "Leye_Inside"])
     ranking = fm.rank_markers(data.train)           # A P = Q R (Sec. III)
@@ -76,6 +76,9 @@ _LAZY = {
     "LoadedDataset": ("facemotion.ingest.loading", "LoadedDataset"),
     "MarkerRanking": ("facemotion.ranking.result", "MarkerRanking"),
     "InputError": ("facemotion.errors", "InputError"),
+    "design": ("facemotion.regions.marker_set", "design"),
+    "reconstruct": ("facemotion.regions.marker_set", "reconstruct"),
+    "MarkerSetDesign": ("facemotion.regions.design", "MarkerSetDesign"),
 }
 _SUBMODULES = ("lips",)
 
@@ -83,7 +86,7 @@ __all__ = [  # the same names as _LAZY and _SUBMODULES (a literal list, for lint
     "read", "load", "align_head", "fill_gaps", "gap_report", "displacement_matrix",
     "rank_markers", "epsilon_rank", "fit_regions", "predict", "error_curve", "sentence_sweep",
     "MarkerSelector", "selection_table", "Recording", "Displacements", "LoadedDataset",
-    "MarkerRanking", "InputError", "lips",
+    "MarkerRanking", "InputError", "lips", "design", "reconstruct", "MarkerSetDesign",
 ]
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazily
@@ -100,6 +103,8 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load lazi
     from facemotion.ranking.result import MarkerRanking, selection_table
     from facemotion.ranking.routes import rank_markers
     from facemotion.ranking.stability import sentence_sweep
+    from facemotion.regions.design import MarkerSetDesign
+    from facemotion.regions.marker_set import design, reconstruct
     from facemotion.regions.prediction import error_curve, predict
     from facemotion.regions.prediction import fit_coefficients as fit_regions
     from facemotion.regions.selector import MarkerSelector

@@ -80,13 +80,92 @@ UNITS = click.option(
          "CSV file is read as mm. Everything is reported in mm.")
 
 
+def _target_mm(ctx, param, value) -> float:
+    """A length such as 1mm, 0.5 mm, 0.1cm or 1 (mm), in mm."""
+    if value is None:
+        return None
+    import re
+
+    from facemotion.io.base import unit_scale
+
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([a-zA-Z]*)\s*", value)
+    if not m:
+        raise click.BadParameter(f"{value!r} is not a length such as 1mm or 0.5")
+    try:
+        scale = unit_scale(m.group(2) or "mm", "--error")
+    except InputError as e:
+        raise click.BadParameter(str(e).split(": ", 1)[-1]) from None
+    mm = float(m.group(1)) * scale
+    if not mm > 0:
+        raise click.BadParameter(f"{value!r}: the target error must be positive")
+    return mm
+
+
+def _emit(as_json: dict | None, tsv, text: str) -> None:
+    """One of the three forms of a command's answer on stdout: JSON, TSV or text."""
+    if as_json is not None:
+        import json
+
+        click.echo(json.dumps(as_json, indent=1, allow_nan=False, default=_json_default))
+    elif tsv is not None:
+        click.echo(tsv.to_csv(sep="\t", index=False, float_format="%.6g",
+                              lineterminator="\n"), nl=False)
+    else:
+        click.echo(text)
+
+
+def _json_default(value):
+    """numpy scalars and arrays in JSON; NaN is refused by allow_nan=False upstream, so
+    numbers are made finite or None first (:func:`_finite`)."""
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def _finite(records):
+    """NaN and inf as None (JSON null), recursively."""
+    import math
+
+    if isinstance(records, dict):
+        return {k: _finite(v) for k, v in records.items()}
+    if isinstance(records, list | tuple):
+        return [_finite(v) for v in records]
+    if isinstance(records, float) and not math.isfinite(records):
+        return None
+    return records
+
+
+OUTPUT_FORMS = [
+    click.option("--json", "as_json", is_flag=True,
+                 help="Print the answer as one JSON object on stdout (for scripts)."),
+    click.option("--tsv", "as_tsv", is_flag=True,
+                 help="Print the answer's main table as TSV on stdout (for scripts)."),
+]
+
+
+def _output_forms(f):
+    for option in reversed(OUTPUT_FORMS):
+        f = option(f)
+    return f
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="facemotion")
 def cli() -> None:
     """How the face moves during speech: kinematic regions by QR with column pivoting
     (Lucero & Munhall 2008) and a lip model trained from data (Basu & Pentland 1997).
 
-    Run `facemotion COMMAND --help` for a command's options.
+    Run `facemotion COMMAND --help` for a command's options. info, rank and design print
+    JSON (--json) or a TSV table (--tsv) on stdout for scripts; messages go to stderr.
+
+    \b
+    Exit status: 0 done; 1 bad input (a file, marker or setting; one line on stderr names
+    it) or, for `docs --check`, a difference; 2 a wrong command line; 130 interrupted;
+    `study` returns Snakemake's own status.
     """
 
 
@@ -98,8 +177,9 @@ def cli() -> None:
 @RATE
 @click.option("--markers/--no-markers", default=True, show_default=True,
               help="List every marker with its missing samples and gaps.")
+@_output_forms
 def info(file: str, fmt: str | None, units: str | None, subject_prefix: str | None,
-         rate: float | None, markers: bool) -> None:
+         rate: float | None, markers: bool, as_json: bool = False, as_tsv: bool = False) -> None:
     """What a recording holds: markers, frame rate, units, frames and gaps (missing samples).
 
     FILE is one take in any format of --format. Coordinates are converted to mm on reading;
@@ -112,6 +192,16 @@ def info(file: str, fmt: str | None, units: str | None, subject_prefix: str | No
     report = gap_report(rec)
     n_missing = int(report["missing_frames"].sum())
     total = rec.n_frames * rec.n_markers
+    table = report[["marker", "missing_frames", "n_gaps", "longest_gap_frames"]]
+    if as_json or as_tsv:
+        answer = {"file": rec.source, "markers": rec.n_markers, "rate_hz": rec.rate,
+                  "frames": rec.n_frames, "duration_s": rec.n_frames / rec.rate,
+                  "units": rec.units, "units_source": rec.units_source,
+                  "missing_samples": n_missing, "samples": total,
+                  "gaps": int(report["n_gaps"].sum()),
+                  "per_marker": table.to_dict(orient="records")}
+        _emit(_finite(answer) if as_json else None, table if as_tsv else None, "")
+        return
     click.echo(f"file: {rec.source}")
     click.echo(f"markers: {rec.n_markers}")
     click.echo(f"rate: {rec.rate:g} Hz")
@@ -124,7 +214,6 @@ def info(file: str, fmt: str | None, units: str | None, subject_prefix: str | No
                f"({100.0 * n_missing / total if total else 0.0:.2f}%), "
                f"{int(report['n_gaps'].sum())} gap(s) in {len(gappy)} marker(s)")
     if markers:
-        table = report[["marker", "missing_frames", "n_gaps", "longest_gap_frames"]]
         click.echo(table.to_string(index=False))
 
 
@@ -170,8 +259,10 @@ def info(file: str, fmt: str | None, units: str | None, subject_prefix: str | No
 @UNITS
 @SUBJECT_PREFIX
 @RATE
+@_output_forms
 def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, method,
-         max_interp_s, long_gaps, neutral, fmt, units, subject_prefix, rate) -> None:
+         max_interp_s, long_gaps, neutral, fmt, units, subject_prefix, rate, as_json=False,
+         as_tsv=False) -> None:
     """Rank the markers of one or more takes by QR with column pivoting (Lucero & Munhall
     2008, Sec. III) and give the epsilon-rank (Sec. III, eq. 1).
 
@@ -189,19 +280,27 @@ def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, me
                                  ("subject_prefix", subject_prefix), ("rate", rate))
                if v is not None}
     data = load(list(files), fmt=fmt, head_markers=head, exclude_markers=exclude,
-                include_markers=include, **options)
+                include_markers=include, progress=True, **options)
     _echo_filled(data.gap_report)
     train = data.train
     ranking = rank_markers(train, method=method)
     rows, n = train.A.shape
+    table = epsilon_rank(ranking, list(tolerances) or list(DEFAULT_TOLERANCES_MM),
+                         normalisation=r_normalisation)
+    if as_json or as_tsv:
+        pivots = ranking.to_frame(r_normalisation)
+        answer = {"takes": [str(f) for f in files], "rows": rows, "frames": rows // 3,
+                  "markers": n, "first_pivots": ranking.labels_in_order[:n_first],
+                  "pivots": pivots.to_dict(orient="records"),
+                  "epsilon_rank": table.to_dict(orient="records")}
+        _emit(_finite(answer) if as_json else None, pivots if as_tsv else None, "")
+        return
     click.echo(f"A: {rows} rows ({rows // 3} frames) x {n} markers from {len(files)} take(s)")
     click.echo(f"first pivots: {', '.join(ranking.labels_in_order[:n_first])}")
     click.echo("")
     click.echo(ranking.to_frame(r_normalisation).to_string(
         index=False, float_format=lambda x: f"{x:.6g}"))
     click.echo("")
-    table = epsilon_rank(ranking, list(tolerances) or list(DEFAULT_TOLERANCES_MM),
-                         normalisation=r_normalisation)
     # the redundant markers are the pivots after the epsilon-rank, in the order printed above
     click.echo(table.drop(columns=["redundant_markers"], errors="ignore").to_string(index=False))
 
@@ -313,8 +412,109 @@ def docs(check: bool, results: str, repo: str, shared_data: str | None) -> None:
         sys.exit(1)
 
 
+@cli.command()
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--head", "head", multiple=True, callback=_labels, metavar="A,B,C",
+              help="Head markers (at least 3): removed as rigid head motion and placed in "
+                   "every take; never among the k markers.")
+@click.option("--error", "target_mm", default="1mm", show_default=True, callback=_target_mm,
+              metavar="LENGTH", help="Target mean held-out error (e.g. 1mm, 0.5mm); k is the "
+                                     "smallest number of markers that reaches it.")
+@click.option("--k", "k", type=click.IntRange(min=1), default=None,
+              help="Number of markers to place, instead of a target error.")
+@click.option("--force", "--include", "force", multiple=True, callback=_labels,
+              metavar="A,B,...", help="Markers that must be placed.")
+@click.option("--exclude", "exclude", multiple=True, callback=_labels, metavar="A,B,...",
+              help="Markers never placed (they are still predicted).")
+@click.option("--drop", "drop", multiple=True, callback=_labels, metavar="A,B,...",
+              help="Markers left out altogether (neither placed nor predicted).")
+@click.option("--symmetric", is_flag=True,
+              help="Left-right symmetric sets only (markers paired by L/R in their labels).")
+@click.option("--subject", "subjects", multiple=True, callback=_labels, metavar="S1,S2,...",
+              help="Each take's subject, in the order of FILES, when the takes come from "
+                   "several subjects (the interval then resamples subjects too).")
+@click.option("--label-map", "label_map", default=None, type=click.Path(dir_okay=False),
+              help="TSV with columns subject, label, common: each subject's marker labels -> "
+                   "common names, for subjects recorded with differently named markers "
+                   "(needs --subject; marker options then use the common names).")
+@click.option("--resamples", type=click.IntRange(min=1), default=1000, show_default=True,
+              help="Bootstrap resamples of the intervals.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Bootstrap seed.")
+@click.option("--out", "out_dir", default="marker-set", show_default=True,
+              type=click.Path(file_okay=False),
+              help="Folder for marker_set.json (the set, for `facemotion reconstruct`), "
+                   "marker_set.tsv, marker_set.png and marker_set_protocol.txt.")
+@FORMAT
+@UNITS
+@_output_forms
+def design(files, head, target_mm, k, force, exclude, drop, symmetric, subjects, label_map,
+           resamples, seed, out_dir, fmt, units, as_json, as_tsv) -> None:
+    """Recommend k markers to place, from pilot takes: the fewest that predict the others
+    within the target mean held-out error (or a given k), with the expected error of every
+    marker and a bootstrap interval, and the gap to greedy and exhaustive selection.
+
+    FILES are the pilot takes (one sentence each). The set is chosen by cross-validation over
+    the takes (docs/design.md). Writes the set and its coefficients, a TSV, a figure and a
+    protocol text to --out; prints the set (text, --json or --tsv).
+    """
+    from facemotion.regions.marker_set import design as run_design
+    from facemotion.regions.marker_set import read_label_map, write_outputs
+
+    if subjects and len(subjects) != len(files):
+        raise click.BadParameter(f"{len(subjects)} subjects for {len(files)} files",
+                                 param_hint="--subject")
+    options = {"units": units} if units else {}
+    ms = run_design(list(files), head_markers=head, drop_markers=drop, target_mm=target_mm,
+                    k=k, force=force, exclude=exclude, symmetric=symmetric,
+                    subjects=list(subjects) or None,
+                    label_map=read_label_map(label_map) if label_map else None, fmt=fmt,
+                    resamples=resamples, seed=seed, progress=True, **options)
+    written = write_outputs(ms, out_dir)
+    click.echo("facemotion: wrote " + ", ".join(str(p) for p in written), err=True)
+    _emit(_finite(ms.to_dict()) if as_json else None,
+          ms.per_marker if as_tsv else None, ms.describe())
+
+
+@cli.command()
+@click.argument("marker_set", type=click.Path(dir_okay=False))
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--out", "out_dir", default="reconstructed", show_default=True,
+              type=click.Path(file_okay=False), help="Folder for the reconstructed takes.")
+@click.option("--to", "to", type=click.Choice(["c3d", "trc"]), default="c3d",
+              show_default=True, help="Format of the written takes.")
+@click.option("--predict-all", is_flag=True,
+              help="Predict every marker that is not placed, even where a take measured it "
+                   "(to compare the prediction with the measurement). Default: measured "
+                   "samples are kept and only missing ones predicted.")
+@FORMAT
+@UNITS
+def reconstruct(marker_set, files, out_dir, to, predict_all, fmt, units) -> None:
+    """Predict every marker of a saved set (MARKER_SET, from `facemotion design`) in new takes
+    that hold its placed and head markers, and write them as C3D or TRC with the predicted
+    samples flagged (C3D residual 0; the roles and counts in <file>.reconstructed.tsv).
+    """
+    from facemotion.io.registry import read_recording
+    from facemotion.regions.design import MarkerSetDesign
+    from facemotion.regions.marker_set import reconstruct as run
+    from facemotion.regions.marker_set import write_reconstruction
+
+    ms = MarkerSetDesign.load(marker_set)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for f in files:
+        rec = run(read_recording(f, fmt, units=units), ms, keep_measured=not predict_all)
+        paths = write_reconstruction(out / (Path(f).stem + "." + to), rec, ms)
+        n = int(rec.filled.sum())
+        click.echo(f"{f}: {n} sample(s) of {len(ms.predicted)} predicted marker(s) "
+                   f"reconstructed -> {paths[0]}")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``facemotion`` command (one-line errors, non-zero exit status)."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    if not args:  # a bare `facemotion` is a request for help, not a usage error
+        click.echo(cli.get_help(click.Context(cli, info_name="facemotion")))
+        sys.exit(0)
     try:
         status = cli.main(args=argv, prog_name="facemotion", standalone_mode=False)
     except click.exceptions.Exit as e:

@@ -12,6 +12,11 @@ class InputError(FacemotionError, ValueError):
     """Bad input data or settings; the message says which and what is wrong."""
 
 
+class MissingFileError(InputError, FileNotFoundError):
+    """A file that does not exist: both a facemotion error (``InputError``) and Python's
+    ``FileNotFoundError``, so either ``except`` catches it."""
+
+
 def token(value, limit: int = TOKEN_CHARS) -> str:
     """A short, quoted, printable form of a value read from a file, for an error message.
 

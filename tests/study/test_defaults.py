@@ -188,6 +188,12 @@ WORKFLOW_ONLY = {
 
 #: Library parameters named like a setting, with another default, that are not that setting.
 NOT_THE_SETTING = {
+    ("facemotion.regions.design", "subjects"): "the pilot sentences' subjects, not the sheet",
+    ("facemotion.regions.design", "neutral"): "the marker set's rest positions (mm), not the "
+                                              "neutral-pose mode",
+    ("facemotion.regions.design", "k"): "the design's k: from the target error unless given",
+    ("facemotion.regions.marker_set", "k"): "the design's k: from the target error unless given",
+    ("facemotion.regions.marker_set", "subjects"): "each pilot take's subject, not the sheet",
     ("facemotion.ingest.loading", "sentences"): "the intervals of the takes, not how many "
                                                 "sentences the animation shows",
     ("facemotion.ingest.streaming", "sentences"): "the intervals of the takes (as loading's)",
@@ -342,7 +348,7 @@ def test_load_and_the_command_line_leave_the_defaults_to_load_dataset(monkeypatc
 
     monkeypatch.setattr(loading, "load_dataset", capture)
     with pytest.raises(SystemExit):
-        loading.load(["a.c3d", "b.c3d"], heldout=[1])
+        loading.load(["a.c3d", "b.c3d"], heldout_sentences=[2])
     assert not {"max_interp_s", "long_gaps", "neutral", "limits"} & set(seen)
     seen.clear()
     CliRunner().invoke(cli.cli, ["rank", "a.c3d"], catch_exceptions=True)

@@ -175,13 +175,13 @@ GATHER = {"summarise_study", "write_manifest", "all", "compare_with_papers"}
 
 
 @pytest.mark.parametrize("setting, reruns", [
-    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers", "summarise_ranking"}),
+    ("qr:\n  tolerances_mm: [0.3]\n", {"rank_markers", "summarise_ranking", "render_face_page"}),
     ("qr:\n  table_orders: 5\n", {"summarise_ranking"}),
     ("qr:\n  noise_mm: 0.3\n", {"find_redundant_markers"}),
     ("qr:\n  optimality_k_max: 2\n", {"compare_subsets"}),
     ("qr:\n  replicates: 10\n", {"sweep_sentences"}),
     ("eval:\n  trajectory_k: 3\n", {"evaluate_heldout", "summarise_heldout"}),
-    ("fit:\n  grid_n: 30\n", {"fit_regions"}),
+    ("fit:\n  grid_n: 30\n", {"fit_regions", "render_face_page"}),
     ("animation:\n  grid_n: 12\n", {"animate_heldout"}),
     ("gaps:\n  max_interp_s: 0.2\n", None),  # the data: everything after loading
 ])
@@ -204,7 +204,7 @@ def dry_run_jobs(proc) -> list[tuple[str, str]]:
 
 
 # the aggregations: tables and figures across datasets, the comparison, summary and manifest
-AGGREGATIONS = GATHER | {"summarise_ranking", "summarise_heldout"}
+AGGREGATIONS = GATHER | {"summarise_ranking", "summarise_heldout", "render_face_page"}
 
 
 def test_a_new_subject_runs_only_its_own_jobs_and_the_aggregations(smoke_runs, tmp_path):
@@ -225,7 +225,7 @@ def test_a_new_subject_runs_only_its_own_jobs_and_the_aggregations(smoke_runs, t
     assert per_rule == dict.fromkeys(
         ["simulate_subject", "load_dataset", "rank_markers", "find_redundant_markers",
          "sweep_sentences", "compare_subsets", "fit_regions", "evaluate_heldout",
-         "animate_heldout"], 1), per_rule
+         "animate_heldout", "design_markers"], 1), per_rule
     assert {rule for rule, _ in jobs} & AGGREGATIONS == AGGREGATIONS
 
 
@@ -319,6 +319,11 @@ def test_terminal_output_is_short_and_ends_with_a_summary(smoke_runs):
     sel = pd.read_csv(a / "results" / "smoke" / "tables" / "selected_markers.tsv", sep="\t",
                       dtype=str)
     assert " ".join(sel["S1"][:5]) in summary
+    # which sentences trained and which were held out, from the dataset's own table
+    sent = pd.read_csv(a / "results" / "smoke" / "S1" / "data" / "sentences.tsv", sep="\t")
+    n_train, n_held = (sent["role"] == "train").sum(), (sent["role"] == "heldout").sum()
+    assert f"  S1: trained on {n_train} ({sent['sentence'].iloc[0]}" in summary
+    assert f"; held out {n_held} (" in summary
     assert "--report results/smoke/report.html" in tail
 
 

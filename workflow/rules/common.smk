@@ -65,6 +65,9 @@ sample_benchmarks_every(5.0)
 
 # With no --configfile the default study's config is the base; --config values override it.
 _OWN_SHEET = "subjects" in config  # from --config, a config file or a host workflow
+# the lip subjects are the user's when a config file or --config names them, else the
+# default study's (the built-in virtual lip talker)
+_OWN_LIPS = "lips" in config or bool(workflow.config_settings.configfiles)
 if not workflow.config_settings.configfiles:
     with open(workflow.source_path("../../config/config.yaml")) as _f:
         _merged = merge_default_config(dict(config), yaml.safe_load(_f))
@@ -397,10 +400,20 @@ def summary_inputs(wildcards):
         "lips": [f"<results>/lips/{ls}/reconstruction.tsv" for ls in LIP_SUBJECTS],
         "rank_summary": "<results>/tables/rank_summary.tsv",
         "selected": "<results>/tables/selected_markers.tsv",
+        "sentences": per_dataset("<results>/{dataset}/data/sentences.tsv", DATASETS),
     }
     if COMPARISON_DATASETS or COMPARISON_LIP_SUBJECT is not None:
         inp["comparison"] = "<results>/tables/paper_comparison.tsv"
     return inp
+
+
+def builtin_lip_subjects():
+    """In a study of the user's own sheet, the lip subjects that are the built-in virtual lip
+    talker (the summary does not present them as the user's results)."""
+    if not _OWN_SHEET or _OWN_LIPS:
+        return []
+    subjects = config["lips"]["subjects"]
+    return [ls for ls in LIP_SUBJECTS if subjects[ls].get("source") == "virtual"]
 
 
 def all_outputs():
@@ -411,12 +424,14 @@ def all_outputs():
         out += [f"{base}/qr/r_values.tsv", f"{base}/qr/rank.tsv"]
         out += [f"{base}/qr/redundancy.tsv", f"{base}/qr/stability.tsv"]
         out += [f"{base}/qr/optimality.tsv"]
+        out += [f"{base}/design/markers.tsv", f"{base}/design/marker_set_plot.png"]
         out += [f"{base}/fit/coefficients_k{k}.tsv" for k in config["fit"]["k"]]
     for d in EVAL_DATASETS:
         out += [f"<results>/{d}/eval/error_curve.tsv"]
         if config["animation"]["enabled"]:
             out += [f"<results>/{d}/anim/heldout_still.png"]
     out += ["<results>/tables/selected_markers.tsv", "<results>/figures/r_values.png"]
+    out += ["<results>/figures/face_3d.html"]
     if EVAL_DATASETS:
         out += ["<results>/figures/error_curves.png"]
     for ls in LIP_SUBJECTS:

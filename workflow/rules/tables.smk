@@ -19,6 +19,8 @@ rule summarise_study:
         root=lambda wc, output: os.path.dirname(output.summary),
         lip_subjects=LIP_SUBJECTS,
         skipped=SKIPPED,
+        dataset_labels=[DATASETS[d].label for d in DATASETS],
+        builtin_lips=builtin_lip_subjects(),
     message:
         "summarise_study: the closing summary, {output.summary}"
     script:

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, MissingFileError
 from facemotion.ingest.displacements import Displacements, check_sentence_indices
 from facemotion.io.atomic import current_umask
 
@@ -248,7 +248,7 @@ class DisplacementsFile:
     def __init__(self, path):
         p = Path(path)
         if not p.is_file():
-            raise InputError(f"{p}: displacements file not found")
+            raise MissingFileError(f"{p}: displacements file not found")
         self.path = p
         try:
             entries = _stored_entries(p)

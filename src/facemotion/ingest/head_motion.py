@@ -103,6 +103,14 @@ def align_head(rec: Recording, head_markers: list[str], reference=None
     Frames where fewer than 3 head markers are present, or where the present ones are
     collinear, raise InputError naming the frame and the missing markers.
     """
+    out, residual, _, _ = align_head_transforms(rec, head_markers, reference)
+    return out, residual
+
+
+def align_head_transforms(rec: Recording, head_markers: list[str], reference=None
+                          ) -> tuple[Recording, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`align_head`, also returning each frame's fit R (F, 3, 3) and t (F, 3), with
+    head frame = lab @ R^T + t (so lab = (head frame - t) @ R)."""
     src = rec.source or "recording"
     head_markers = [str(h) for h in head_markers]
     if len(head_markers) < 3:
@@ -130,6 +138,18 @@ def align_head(rec: Recording, head_markers: list[str], reference=None
         raise InputError(f"{src}: head markers {', '.join(head_markers)} are collinear in the "
                          "reference; the head's rotation is undetermined")
 
+    R, t, residual = head_transforms(rec, head_markers, idx, head, present, ref)
+    aligned = np.matmul(rec.points, R.transpose(0, 2, 1))  # x R^T per frame (batched)
+    aligned += t[:, None, :]
+    out = Recording(list(rec.labels), aligned, rec.rate, rec.source, rec.filled.copy())
+    return out, residual, R, t
+
+
+def head_transforms(rec: Recording, head_markers: list[str], idx, head, present, ref
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each frame's rigid fit of the head markers to the reference: R (F, 3, 3), t (F, 3)
+    with head-frame = lab @ R^T + t, and the fit's RMS residual (F,) in mm."""
+    src = rec.source or "recording"
     F = rec.n_frames
     R = np.empty((F, 3, 3))
     t = np.empty((F, 3))
@@ -163,7 +183,4 @@ def align_head(rec: Recording, head_markers: list[str], reference=None
         t[frames] = tb
         fitted = np.einsum("bij,bmj->bmi", Rb, X) + tb[:, None, :]
         residual[frames] = np.sqrt(np.mean(np.sum((fitted - Y) ** 2, axis=2), axis=1))
-    aligned = np.matmul(rec.points, R.transpose(0, 2, 1))  # x R^T per frame (batched)
-    aligned += t[:, None, :]
-    out = Recording(list(rec.labels), aligned, rec.rate, rec.source, rec.filled.copy())
-    return out, residual
+    return R, t, residual

@@ -88,7 +88,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
                  rate: float | None = None,
                  copy_markers: list[tuple[str, str]] = (),
                  markers_named_in: str = "the subject sheet",
-                 takes: dict | None = None) -> LoadedDataset:
+                 takes: dict | None = None, progress: bool = False) -> LoadedDataset:
     """Load the sentences ``train + heldout`` (0-based indices into the sentences).
 
     The sentences are ``recordings`` (one file each) or, when given, ``sentences``: intervals
@@ -108,6 +108,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     files in another order, e.g. S2a and S2a*): each take is read once and kept there (the
     recordings read are never modified), with the results of the sentences' checks that
     found nothing to warn about. Without it, a take is dropped once cut.
+    ``progress``: a progress bar on stderr while the takes are read (only on a terminal).
     """
     from facemotion.ingest.validation import Limits, check_same_shape
 
@@ -118,7 +119,7 @@ def load_dataset(recordings: list[str], fmt: str, *, units: str | None = None,
     chosen = [items[i] for i in list(train) + list(heldout)]
     where = chosen[0].take
     roles = ["train"] * len(train) + ["heldout"] * len(heldout)
-    recs = read_sentences(chosen, source, takes)
+    recs = read_sentences(chosen, source, takes, progress)
     labels = recs[0].labels
     keep, used = check_marker_lists(labels, where, head_markers, exclude_markers,
                                     include_markers, markers_named_in)
@@ -160,27 +161,49 @@ class TakeSource:
     rate: float | None = None
 
 
+def progress_bar(total: int, what: str, show: bool):
+    """A progress bar on stderr (tqdm) when ``show`` and stderr is a terminal, else None."""
+    if not show:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # tqdm is a dependency; a trimmed install just shows no bar
+        return None
+    import sys
+
+    return tqdm(total=total, desc=what, unit="take", file=sys.stderr, disable=None,
+                leave=False)
+
+
 def read_sentences(chosen: list[Segment], source: TakeSource,
-                   takes: dict | None = None) -> list[Recording]:
-    """Read each take once and cut the sentences ``chosen`` from it."""
+                   takes: dict | None = None, progress: bool = False) -> list[Recording]:
+    """Read each take once and cut the sentences ``chosen`` from it.  ``progress``: a bar
+    on stderr while reading, when stderr is a terminal."""
     from facemotion.io.registry import read_recording
 
     shared = takes is not None
     takes = {} if takes is None else takes
     recs = []
     n_takes, n_read = len(dict.fromkeys(s.take for s in chosen)), 0
+    bar = progress_bar(n_takes, "reading takes", progress)
     for i, seg in enumerate(chosen):
         key = (seg.take, source.fmt, source.units, source.subject_prefix, source.rate)
         if key not in takes:
             n_read += 1
             log.info("reading %s (%d/%d)", seg.take, n_read, n_takes)
+            if bar is not None:
+                bar.set_postfix_str(Path(seg.take).name, refresh=True)
             takes[key] = read_recording(seg.take, source.fmt, units=source.units,
                                         subject_prefix=source.subject_prefix,
                                         rate=source.rate)
+            if bar is not None:
+                bar.update(1)
         recs.append(cut(takes[key], seg))
         if not seg.whole:
             log.info("sentence %d/%d %r: %s, %.4f-%.4f s, %d frames", i + 1, len(chosen),
                      seg.name, seg.take, seg.start_s, seg.end_s, recs[-1].n_frames)
+    if bar is not None:
+        bar.close()
     if not shared:
         takes.clear()
     for rec in recs[1:]:
@@ -354,12 +377,16 @@ def _report_copies(rep: pd.DataFrame, miss: np.ndarray, rec, pairs: list[tuple[s
     return rep
 
 
-def load(paths, *, heldout=(), fmt: str | None = None, head_markers=(), exclude_markers=(),
-         include_markers=(), **options) -> LoadedDataset:
+def load(paths, *, heldout_sentences=(), fmt: str | None = None, head_markers=(),
+         exclude_markers=(), include_markers=(), heldout=None, progress: bool = False,
+         **options) -> LoadedDataset:
     """Load takes into one dataset (``facemotion.load``), by the path the workflow uses.
 
     paths: one file or a list of files (the sentences, in this order).
-    heldout: 0-based indices into ``paths`` of the held-out sentences; the others train.
+    heldout_sentences: numbers of the held-out sentences, counting from 1 as the config
+        does (1 is the first of ``paths``); the others train.
+    heldout: the 0.2 form, counting from 0; deprecated (DeprecationWarning), removed in 0.3.
+    progress: a progress bar on stderr while the takes are read (only on a terminal).
     fmt: one of facemotion.io.registry.FORMAT_NAMES; default: from the first file's content
         or suffix (:func:`facemotion.io.registry.infer_format`).
     head_markers: >= 3 markers that move with the head only (removed as rigid motion).
@@ -373,15 +400,33 @@ def load(paths, *, heldout=(), fmt: str | None = None, head_markers=(), exclude_
     paths = [str(paths)] if isinstance(paths, str | Path) else [str(p) for p in paths]
     if not paths:
         raise InputError("paths: no recordings given")
-    held = sorted({int(i) for i in heldout})
-    bad = [i for i in held if not 0 <= i < len(paths)]
-    if bad:
-        raise InputError(f"heldout: sentence index(es) {bad} out of range for "
-                         f"{len(paths)} recording(s)")
+    held, name = _heldout_indices(heldout_sentences, heldout, len(paths))
     train = [i for i in range(len(paths)) if i not in set(held)]
     if not train:
-        raise InputError("heldout: every recording is held out; at least one must train")
+        raise InputError(f"{name}: every recording is held out; at least one must train")
     return load_dataset(paths, fmt or infer_format(paths[0]), head_markers=list(head_markers),
                         exclude_markers=list(exclude_markers),
                         include_markers=list(include_markers), train=train, heldout=held,
-                        markers_named_in="the arguments", **options)
+                        markers_named_in="the arguments", progress=progress, **options)
+
+
+def _heldout_indices(numbers, old, n: int) -> tuple[list[int], str]:
+    """0-based indices of the held-out sentences from ``heldout_sentences`` (from 1) or the
+    deprecated ``heldout`` (from 0), and the argument's name for messages."""
+    if old is not None:
+        if len(numbers):
+            raise InputError("heldout / heldout_sentences: give one of them (heldout_sentences "
+                             "counts from 1)")
+        import warnings
+
+        warnings.warn("facemotion.load(heldout=...) counts sentences from 0 and is deprecated "
+                      "(removed in 0.3); use heldout_sentences=..., counting from 1 as the "
+                      "config does", DeprecationWarning, stacklevel=3)
+        held, name, first = sorted({int(i) for i in old}), "heldout", 0
+    else:
+        held, name, first = sorted({int(i) - 1 for i in numbers}), "heldout_sentences", 1
+    bad = [i + first for i in held if not 0 <= i < n]
+    if bad:
+        raise InputError(f"{name}: sentence number(s) {bad} out of range for {n} "
+                         f"recording(s) (counting from {first})")
+    return held, name

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError, token
+from facemotion.errors import InputError, MissingFileError, token
 from facemotion.io.recording import Recording
 
 KINDS = ("textgrid", "events", "tsv")
@@ -172,7 +172,7 @@ def read_textgrid(path) -> TextGridTiers:
     (:func:`textgrid_text`)."""
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{p}: TextGrid file not found")
+        raise MissingFileError(f"{p}: TextGrid file not found")
     try:
         raw = p.read_bytes()
     except OSError as e:
@@ -308,7 +308,7 @@ def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{p}: file not found")
+        raise MissingFileError(f"{p}: file not found")
     c = open_c3d(p)
     point = c["parameters"]["POINT"]
     rate_v = np.ravel(point["RATE"]["value"]) if "RATE" in point else np.array([])
@@ -400,7 +400,7 @@ def read_interval_table(path) -> list[tuple[int, str, float, float, str]]:
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{p}: segments table not found")
+        raise MissingFileError(f"{p}: segments table not found")
     try:
         df = pd.read_csv(p, sep="\t", dtype=str, keep_default_na=False, comment="#")
     except Exception as e:

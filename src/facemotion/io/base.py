@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError, token
+from facemotion.errors import InputError, MissingFileError, token
 
 #: Parse regular TRC/CSV text with the C parser (benchmarks switch it off to compare).
 FAST_TEXT = True
@@ -51,7 +51,7 @@ def unit_scale(unit: str, where: str) -> float:
 def check_readable(path) -> Path:
     p = Path(path)
     if not p.exists():
-        raise InputError(f"{p}: file not found")
+        raise MissingFileError(f"{p}: file not found")
     if p.is_dir():
         raise InputError(f"{p}: is a directory, not a recording file")
     if not p.is_file():

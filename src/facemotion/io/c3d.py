@@ -241,8 +241,14 @@ def read_c3d(path, units: str | None = None) -> Recording:
     return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
 
 
-def write_c3d(path, rec: Recording) -> None:
-    """Write the points of ``rec`` to a C3D file (mm; residual -1 where a sample is NaN)."""
+def write_c3d(path, rec: Recording, flag_filled: bool = False,
+              descriptions: list[str] | None = None) -> None:
+    """Write the points of ``rec`` to a C3D file (mm; residual -1 where a sample is NaN).
+
+    flag_filled: mark ``rec.filled`` samples as computed, by the C3D convention for residuals
+    (0: valid but interpolated or computed; > 0: measured): filled samples get residual 0, the
+    others 1.0, a placeholder (the measured residuals are not known here).  Without it every
+    valid sample has residual 0.  descriptions: POINT:DESCRIPTIONS, one per marker."""
     import ezc3d
 
     if rec.n_frames == 0:
@@ -260,7 +266,14 @@ def write_c3d(path, rec: Recording) -> None:
     pts[:3, bad] = np.nan
     c["data"]["points"] = pts
     residuals = np.zeros((1, rec.n_markers, rec.n_frames))
+    if flag_filled:
+        residuals[0] = np.where(rec.filled.T, 0.0, 1.0)
     residuals[0, bad] = -1.0
+    if descriptions is not None:
+        if len(descriptions) != rec.n_markers:
+            raise InputError(f"{path}: {len(descriptions)} descriptions for {rec.n_markers} "
+                             "markers")
+        c["parameters"]["POINT"]["DESCRIPTIONS"]["value"] = tuple(descriptions)
     c["data"]["meta_points"]["residuals"] = residuals
     c["data"]["meta_points"]["camera_masks"] = np.zeros((7, rec.n_markers, rec.n_frames),
                                                         dtype=bool)

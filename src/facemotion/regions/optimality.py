@@ -79,15 +79,23 @@ def _schur(G, T):
     return G - W.T @ W
 
 
-def greedy_subset(G: np.ndarray, k: int) -> list[int]:
-    """Forward selection: each step adds the marker with the largest drop in residual."""
+def greedy_subset(G: np.ndarray, k: int, force: Sequence[int] = (),
+                  exclude: Sequence[int] = ()) -> list[int]:
+    """Forward selection: each step adds the marker with the largest drop in residual.
+
+    ``force``: column indices chosen first (greedily among themselves); ``exclude``: columns
+    never chosen."""
     Gp = G.copy()
     chosen: list[int] = []
-    for _ in range(k):
+    force, barred = [int(j) for j in force], [int(j) for j in exclude]
+    for step in range(k):
         d = np.diag(Gp).copy()
         with np.errstate(divide="ignore", invalid="ignore"):
             gain = np.where(d > 1e-12 * np.trace(G), (Gp * Gp).sum(axis=0) / d, -np.inf)
         gain[chosen] = -np.inf
+        gain[barred] = -np.inf
+        if step < len(force):
+            gain[[j for j in range(G.shape[0]) if j not in force]] = -np.inf
         p = int(np.argmax(gain))
         chosen.append(p)
         col = Gp[:, p] / np.sqrt(Gp[p, p])

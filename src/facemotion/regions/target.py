@@ -57,6 +57,38 @@ class SentenceErrors:
         c = self.counts if rows is None else self.counts[rows]
         return s.sum(axis=-2) / c.sum(axis=-2)
 
+    def weighted_mean(self, weights: np.ndarray) -> np.ndarray:
+        """The pooled mean per k for sentence multiplicities ``weights`` (..., S), as
+        :func:`bootstrap_weights` draws them: (..., K)."""
+        return (weights @ self.sums) / (weights @ self.counts)
+
+
+def bootstrap_weights(S: int, resamples: int, rng: np.random.Generator,
+                      groups=None) -> np.ndarray:
+    """How often each of S sentences is drawn in each of ``resamples`` bootstrap resamples,
+    (resamples, S).  Without ``groups``, S sentences are drawn with replacement.  With
+    ``groups`` (S,) (each sentence's subject), a two-stage bootstrap: the subjects are drawn
+    with replacement, then each drawn subject's sentences with replacement among its own, so
+    that the interval covers the variation between subjects as well as between sentences."""
+    W = np.zeros((resamples, S))
+    rows = np.arange(resamples)[:, None]
+    if groups is None:
+        np.add.at(W, (rows, rng.integers(0, S, size=(resamples, S))), 1.0)
+        return W
+    g = np.asarray(groups)
+    if g.shape != (S,):
+        raise InputError(f"groups: expected one subject per sentence ({S}), got {g.shape}")
+    members = [np.flatnonzero(g == u) for u in np.unique(g)]
+    picks = rng.integers(0, len(members), size=(resamples, len(members)))
+    for i, m in enumerate(members):
+        # every drawn copy of subject i contributes len(m) sentences drawn among its own
+        copies = (picks == i).sum(axis=1)
+        for c in np.unique(copies[copies > 0]):
+            sel = np.flatnonzero(copies == c)
+            draws = m[rng.integers(0, m.size, size=(sel.size, int(c) * m.size))]
+            np.add.at(W, (sel[:, None], draws), 1.0)
+    return W
+
 
 def sentence_error_sums(train_ranking: MarkerRanking, B, labels: Sequence[str],
                         row_sentence, sentence_names: Sequence[str] | None = None,
@@ -127,10 +159,12 @@ def _first_k(mean: np.ndarray, ks: np.ndarray, target: float) -> np.ndarray:
 
 def k_for_error(errors: SentenceErrors, target_mm: float = DEFAULT_TARGET_MM,
                 resamples: int = DEFAULT_RESAMPLES, level: float = DEFAULT_LEVEL,
-                seed: int = 0) -> KForError:
+                seed: int = 0, groups=None) -> KForError:
     """k*(target) (module notes) and its percentile-bootstrap interval over held-out
     sentences.  k = n (zero error) is not among ``errors.ks``: when the curve ends before the
-    target, k is None (not reached within the curve)."""
+    target, k is None (not reached within the curve).  ``groups``: each held-out sentence's
+    subject, for a two-stage bootstrap over subjects and sentences (:func:`bootstrap_weights`);
+    default: sentences only."""
     if not (np.isfinite(target_mm) and target_mm > 0):
         raise InputError(f"target error: must be a positive number of mm, got {target_mm!r}")
     if not 0 < level < 1:
@@ -142,8 +176,12 @@ def k_for_error(errors: SentenceErrors, target_mm: float = DEFAULT_TARGET_MM,
         raise InputError("k for a target error: no held-out sentences or no k to evaluate")
     curve = errors.pooled_mean()
     k = int(_first_k(curve, errors.ks, target_mm))
-    draws = np.random.default_rng(seed).integers(0, S, size=(resamples, S))
-    kb = _first_k(errors.pooled_mean(draws), errors.ks, target_mm)
+    if groups is None:
+        draws = np.random.default_rng(seed).integers(0, S, size=(resamples, S))
+        kb = _first_k(errors.pooled_mean(draws), errors.ks, target_mm)
+    else:
+        W = bootstrap_weights(S, resamples, np.random.default_rng(seed), groups)
+        kb = _first_k(errors.weighted_mean(W), errors.ks, target_mm)
     # a resample that never reaches the target within the curve sorts above every k
     kb = np.where(kb == 0, np.iinfo(np.int64).max, kb)
     alpha = (1.0 - level) / 2.0

@@ -51,6 +51,8 @@ TABLE_SCHEMAS: dict[str, tuple[str, tuple[str, ...]]] = {
     "sentence_sweep": ("1", ("n_sentences", "order", "marker", "r_rms")),
     "stability": ("1", ()),
     "optimality": ("1", ("k",)),
+    "marker_set": ("1", ("marker", "role", "order", "expected_error_mm", "error_low_mm",
+                         "error_high_mm")),
     "coefficients": ("1", ("main_marker",)),
     "error_curve": ("2", ("k", "mean_abs_error_mm", "rel_error_per_marker", "rel_error_pooled",
                           "median_abs_error_mm",

@@ -131,6 +131,28 @@ def lip_lines(tables: Mapping[str, object]) -> list[str]:
     return out
 
 
+def _names(names: list[str], limit: int = 4) -> str:
+    """Sentence names, the middle ones elided when there are many."""
+    if len(names) <= limit:
+        return ", ".join(names)
+    return f"{', '.join(names[:limit - 1])}, ..., {names[-1]}"
+
+
+def take_lines(sentences: Mapping[str, object]) -> list[str]:
+    """Per dataset: how many sentences trained and which, how many were held out and which
+    (each dataset's data/sentences.tsv)."""
+    out = []
+    for name, t in sentences.items():
+        roles = t["role"].astype(str)
+        train = [str(x) for x in t.loc[roles == "train", "sentence"]]
+        held = [str(x) for x in t.loc[roles == "heldout", "sentence"]]
+        line = f"  {name}: trained on {len(train)} ({_names(train)})"
+        line += (f"; held out {len(held)} ({_names(held)})" if held
+                 else "; none held out (no held-out error)")
+        out.append(line)
+    return out
+
+
 def comparison_lines(table) -> list[str]:
     """The papers' statements by class and verdict, predictions first (only they test the
     study)."""
@@ -148,13 +170,26 @@ def comparison_lines(table) -> list[str]:
 
 def study_summary(study: str, root: str, rank_summary=None, selected=None,
                   lips: Mapping[str, object] | None = None, skipped: Sequence[str] = (),
-                  comparison=None) -> str:
-    """The closing summary: where the results are and the headline numbers."""
+                  dataset_sentences: Mapping[str, object] | None = None,
+                  builtin_lips: Sequence[str] = (), comparison=None) -> str:
+    """The closing summary: where the results are and the headline numbers.
+
+    dataset_sentences: per dataset, its sentences table (which trained, which were held out).
+    builtin_lips: lip subjects that are the built-in virtual lip talker in a study of the
+    user's own sheet: not the user's data, so their Table 1 is left out with a pointer.
+    comparison: the papers' comparison table (tables/paper_comparison.tsv)."""
     lines = [f"facemotion study '{study}': every output is under {root}/"]
+    if dataset_sentences:
+        lines += ["Sentences (<dataset>/data/sentences.tsv):", *take_lines(dataset_sentences)]
     if rank_summary is not None and selected is not None and len(rank_summary):
         lines += ["Lucero & Munhall 2008 (tables/rank_summary.tsv, tables/selected_markers.tsv):",
                   *rank_lines(rank_summary, selected), *READING]
-    lip = lip_lines(lips or {})
+    lips = dict(lips or {})
+    for ls in builtin_lips:
+        if lips.pop(ls, None) is not None:
+            lines.append(f"Lip model: run on the built-in virtual lip talker '{ls}', not on "
+                         f"your recordings; its table is lips/{ls}/reconstruction.tsv")
+    lip = lip_lines(lips)
     if lip:
         lines += ["Basu & Pentland 1997 Table 1, MSE per degree of freedom in model units^2 "
                   "(lips/<subject>/reconstruction.tsv):", *lip]
