@@ -12,7 +12,12 @@ from facemotion.study.settings import limits_from_config
 
 def main(sm, log, prov):
     ds = sm.params.ds
-    recordings = list(sm.params.recordings)
+    # the params name files as the study records them; files_at says where they lie
+    at = dict(sm.params.files_at)
+    names = {path: name for name, path in at.items()}
+    recordings = [at.get(r, r) for r in sm.params.recordings]
+    segments = ds["segments"] and [{**s, "take": at.get(s["take"], s["take"])}
+                                   for s in ds["segments"]]
     gaps = sm.params.gaps
     loaded = load_dataset(
         recordings, ds["format"], units=ds["units"], head_markers=ds["head_markers"],
@@ -20,7 +25,7 @@ def main(sm, log, prov):
         train=[i - 1 for i in ds["train"]], heldout=[i - 1 for i in ds["heldout"]],
         max_interp_s=gaps["max_interp_s"], long_gaps=gaps["long_gaps"],
         neutral=sm.params.neutral, limits=limits_from_config(gaps, sm.params.checks),
-        sentences=ds["segments"], subject_prefix=ds["subject_prefix"],
+        sentences=segments, subject_prefix=ds["subject_prefix"],
         copy_markers=parse_copy_markers(ds["copy_markers"], "copy_markers"))
     prov.inputs = list(prov.inputs) + recordings
     d = loaded.displacements
@@ -28,7 +33,9 @@ def main(sm, log, prov):
     save_displacements(sm.output.npz, d)
     sidecar_for_existing(sm.output.npz, "displacements", prov)
     write_table(loaded.gap_report, sm.output.gap_report, "gap_report", prov)
-    write_table(loaded.sentences, sm.output.sentences, "sentences", prov)
+    sentences = loaded.sentences.assign(
+        file=[names.get(f, f) for f in loaded.sentences["file"]])
+    write_table(sentences, sm.output.sentences, "sentences", prov)
     fig = plot_gaps(loaded.time_s, loaded.missing, loaded.filled, d.labels,
                     sentence_bounds=loaded.sentence_starts_s)
     save_figure(fig, figure_files(sm.output, "gaps"), "gaps", prov)

@@ -26,6 +26,8 @@ from facemotion.errors import FacemotionError
 from facemotion.io.atomic import temp_prefix
 from facemotion.study.provenance import Provenance
 
+#: the params entry that says where a job's input files lie (not recorded in sidecars)
+FILES_AT = "files_at"
 _WRITE_ERRORS = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO}
 
 
@@ -43,11 +45,15 @@ def provenance_for(sm, extra_inputs=()) -> Provenance:
     """Provenance of a Snakemake job: rule name, its params (the config used), its inputs and
     the outputs it declares."""
     params = {k: v for k, v in sm.params.items()} if hasattr(sm.params, "items") else {}
+    # where the input files lie (a rule's ``files_at`` param: the name the study records for
+    # each file -> its path) is not a setting: sidecars name files by those names
+    files_at = params.pop(FILES_AT, None) or {}
     wildcards = {k: v for k, v in sm.wildcards.items()} if hasattr(sm.wildcards, "items") else {}
     config = {"wildcards": wildcards, "params": params}
     files = [f for f in _flatten(sm.input) if os.path.isfile(f)] + list(extra_inputs)
     return Provenance(step=sm.rule, config=config, inputs=files,
-                      job_outputs=_flatten(getattr(sm, "output", [])))
+                      job_outputs=_flatten(getattr(sm, "output", [])),
+                      names={str(v): str(k) for k, v in files_at.items()})
 
 
 def clean_temporary_files(outputs) -> list[Path]:
