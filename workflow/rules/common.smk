@@ -20,7 +20,14 @@ from facemotion.study.invocation import (
     same_study_command,
     sample_benchmarks_every,
 )
-from facemotion.study.outputs import artifact, figure_files, sidecar, table, tables
+from facemotion.study.outputs import (
+    artifact,
+    check_inside_study,
+    figure_files,
+    sidecar,
+    table,
+    tables,
+)
 from facemotion.study.outputs import figure as _figure
 from facemotion.study.settings import (
     check_lip_frames,
@@ -451,3 +458,11 @@ def print_closing_summary():
     text = closing_message(RESULTS, workflow.start_time.timestamp(), command)
     if text:
         print(text, flush=True)
+
+
+# No setting or sheet value places a file outside the study root (checked again by each job
+# before it writes, symbolic links included).
+with exit_on_error():
+    check_inside_study(
+        [RESULTS] + [workflow.pathvars.apply(p) for p in final_outputs()]
+    )

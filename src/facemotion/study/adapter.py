@@ -24,6 +24,7 @@ from pathlib import Path
 
 from facemotion.errors import FacemotionError
 from facemotion.io.atomic import temp_prefix
+from facemotion.study.outputs import check_inside_study
 from facemotion.study.provenance import Provenance
 
 #: the params entry that says where a job's input files lie (not recorded in sidecars)
@@ -132,6 +133,12 @@ def run_step(sm, main: Callable) -> None:
     # short-lived objects trigger (5-10 % of a figure's CPU), and out of forked workers' pages.
     gc.freeze()
     gc.enable()  # off while a job's script imports its modules (facemotion/__init__.py)
+    if _in_job_process(sm):  # in a study's job, its working directory is the study root
+        try:
+            check_inside_study(_flatten(getattr(sm, "output", [])) + _flatten(sm.log or []))
+        except FacemotionError as exc:
+            print(f"facemotion: {job_name(sm)}: {exc}", file=sys.stderr, flush=True)
+            _end(logging.getLogger("facemotion"), sm, 1)
     log = setup_logging(sm)
     try:
         for p in clean_temporary_files(getattr(sm, "output", [])):
