@@ -22,10 +22,10 @@ HEAD = "H1,H2,H3,H4,H5,H6"
 OLD = 946684800  # 2000-01-01: older than any output
 
 
-def snakemake(workdir, *args, sheet):
+def snakemake(workdir, *args, sheet, more=""):
     extra = Path(workdir) / "extra.yaml"
     extra.write_text(f"subjects: {sheet}\ndefault_datasets: true\nsweeps: {{}}\n"
-                     "virtual_talkers: {n_talkers: 0}\n")
+                     f"virtual_talkers: {{n_talkers: 0}}\n{more}")
     cmd = [sys.executable, "-m", "snakemake", *args, "-s", str(REPO / "Snakefile"),
            "--directory", str(workdir), "--cores", "2", "--configfile",
            str(REPO / "config" / "smoke.yaml"), str(extra)]
@@ -118,3 +118,34 @@ def test_same_study_in_two_folders_gives_the_same_bytes(study):
     assert differ == []
     sentences = (base_a / "data" / "sentences.tsv").read_text()
     assert "{sheet}/takes/take01.c3d" in sentences and str(a) not in sentences
+
+
+def test_mostly_filled_pivots_are_named_and_can_be_left_out(study, tmp_path):
+    """Marker 13 of the virtual talker is recorded in each sentence's first frame only and
+    copied from 11 (copy_markers), so almost all of it is made up: with every pivot checked it
+    is named in rank.tsv, the log and the figure; qr.max_filled_fraction leaves it out."""
+    import pandas as pd
+
+    _, sheet, _ = study
+    snakemake(tmp_path, *TARGETS, sheet=sheet,
+              more="qr: {replicates: 20, optimality_k_max: 3, flag_pivots: 57}\n")
+    base = tmp_path / "results" / "smoke" / "lab"
+    r = pd.read_csv(base / "qr" / "r_values.tsv", sep="\t", dtype={"marker": str})
+    assert list(r.columns[-2:]) == ["filled_fraction", "outlier_fraction"]
+    filled = dict(zip(r["marker"], r["filled_fraction"], strict=True))
+    assert filled["13"] > 0.9 and filled["11"] == 0.0
+    rank = pd.read_csv(base / "qr" / "rank.tsv", sep="\t", keep_default_na=False)
+    order13 = int(r.loc[r["marker"] == "13", "order"].iloc[0])
+    named = f"pivot {order13} 13 {100 * filled['13']:.0f} % filled"
+    assert set(rank["mostly_filled_pivots"]) == {named}
+    log = (tmp_path / "results" / "smoke" / "logs" / "rank_markers" / "lab.log").read_text()
+    assert named in log
+    # left out of A with qr.max_filled_fraction
+    snakemake(tmp_path, *TARGETS, sheet=sheet,
+              more="qr: {replicates: 20, optimality_k_max: 3, max_filled_fraction: 0.9}\n")
+    r = pd.read_csv(base / "qr" / "r_values.tsv", sep="\t", dtype={"marker": str})
+    assert "13" not in set(r["marker"]) and len(r) == 56
+    rank = pd.read_csv(base / "qr" / "rank.tsv", sep="\t", keep_default_na=False, dtype=str)
+    assert set(rank["left_out_filled"]) == {"13"} and set(rank["mostly_filled_pivots"]) == {""}
+    gaps = pd.read_csv(base / "data" / "gap_report.tsv", sep="\t", dtype={"marker": str})
+    assert gaps.loc[gaps["marker"] == "13", "fill_method"].tolist() == ["left out"]

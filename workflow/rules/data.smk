@@ -36,6 +36,7 @@ rule load_dataset:
         gaps=config["gaps"],
         checks=config["checks"],
         neutral=config["neutral"],
+        max_filled_fraction=config["qr"]["max_filled_fraction"],
     message:
         "load_dataset {wildcards.dataset}: files -> head-aligned, gap-filled displacement matrix A"
     script:

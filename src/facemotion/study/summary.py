@@ -55,6 +55,13 @@ def rank_lines(rank_summary, selected, n_pivots: int = 5) -> list[str]:
         ranks = " / ".join(str(int(r.loc[t, "epsilon_rank"])) for t in tols)
         pivots = " ".join(str(m) for m in list(selected[name])[:n_pivots] if str(m))
         out.append(f"  {name:<{width}}  {ranks:<{len(head)}}  {pivots}")
+    for name in names:  # pivots mostly made up by gap filling, markers left out for it
+        r = rank_summary[rank_summary["dataset"] == name]
+        for col, what in (("mostly_filled_pivots", "mostly filled first pivots"),
+                          ("left_out_filled", "left out as mostly filled")):
+            text = str(r[col].iloc[0]) if col in r and len(r) else ""
+            if text and text != "nan":
+                out.append(f"  {name}: {what}: {text}")
     return out
 
 
