@@ -52,4 +52,8 @@ onsuccess:
     print_closing_summary()
 
 
+# The input digests are cached once the whole study is parsed (a refused parse, or a dry
+# run, writes nothing).
+if not workflow.dryrun:
+    _DIGESTS.save()
 _PARSE.done()

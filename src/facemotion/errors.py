@@ -16,10 +16,11 @@ def token(value, limit: int = TOKEN_CHARS) -> str:
     """A short, quoted, printable form of a value read from a file, for an error message.
 
     Messages name the file and the place (line, column, frame); they never echo a file's content
-    beyond such a token: at most ``limit`` characters, non-printable ones escaped, '...' when cut.
+    beyond such a token: a value of at most ``limit`` characters, quoted, non-printable ones
+    escaped; a longer one is only described by its length.
     """
     text = str(value)
-    cut = len(text) > limit
-    text = text[:limit]
+    if len(text) > limit:  # not a label or a unit: say what it is, never show its start
+        return f"a text of {len(text)} characters"
     text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
-    return repr(text + "...") if cut else repr(text)
+    return repr(text)

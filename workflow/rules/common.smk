@@ -188,7 +188,6 @@ for _path, _old, _new in _DIGESTS.changed:
         f"(sha256 {_old[:16]} -> {_new[:16]}); what reads it runs again",
         file=sys.stderr,
     )
-_DIGESTS.save()
 
 
 def _dataset_mesh_path(dataset):

@@ -121,12 +121,56 @@ def c3d_layout(path) -> C3DLayout:
                      (max(start_block, 1) - 1) * 512)
 
 
+def _header_disagreement(p: Path, layout: C3DLayout) -> str | None:
+    """Where the 512-byte header contradicts the parameter section (POINT:USED,
+    POINT:DATA_START, POINT:FRAMES, POINT:SCALE's sign), or None: a damaged header, which a
+    size check alone would take for a file cut short."""
+    with open(p, "rb") as fh:
+        head = fh.read(512)
+        fh.seek((head[0] - 1) * 512)
+        section = fh.read(255 * 512)
+    section = section[:max(section[2], 1) * 512]
+
+    def param(name):
+        return _c3d_parameter(section, layout.processor, "POINT", name)
+
+    checks = [("number of points", layout.points, param("USED")),
+              ("data start block", layout.data_start // 512 + 1, param("DATA_START"))]
+    if layout.last_frame != 0xFFFF:
+        checks.append(("number of frames", layout.frames, param("FRAMES")))
+    used = _c3d_parameter(section, layout.processor, "ANALOG", "USED")
+    a_rate = _c3d_parameter(section, layout.processor, "ANALOG", "RATE")
+    p_rate = param("RATE")
+    if used == 0:
+        checks.append(("analog samples per frame", layout.analog_per_frame, 0))
+    elif used is not None and a_rate and p_rate and a_rate == a_rate and p_rate == p_rate:
+        checks.append(("analog samples per frame", layout.analog_per_frame,
+                       int(used) * int(round(a_rate / p_rate))))
+    scale = param("SCALE")
+    if scale is not None and scale == scale:
+        checks.append(("storage (float or integer)",
+                       "float" if layout.float_storage else "integer",
+                       "float" if scale < 0 else "integer"))
+    for what, header, parameter in checks:
+        if parameter is not None and header != parameter:
+            return (f"its header's {what} ({header}) disagrees with its parameter section "
+                    f"({parameter}): the header is damaged")
+    return None
+
+
 def check_c3d_size(path) -> C3DLayout:
     """InputError if the file is shorter than its header declares (cut in the data section,
-    or its last bytes lost); ezc3d would otherwise read it with frames silently missing."""
+    or its last bytes lost); ezc3d would otherwise read it with frames silently missing. A
+    header that contradicts the parameter section is said to be damaged, not the file cut."""
     p = Path(path)
     layout = c3d_layout(p)
     size = p.stat().st_size
+    if size < layout.size or (size - layout.size > 512
+                              and size - layout.size >= layout.data_bytes // max(layout.frames, 1)
+                              and layout.data_bytes):
+        damaged = _header_disagreement(p, layout)
+        if damaged:
+            raise InputError(f"{p}: C3D file cannot be read: {damaged}")
     if size < layout.size:
         per_frame = max(layout.data_bytes // max(layout.frames, 1), 1)
         whole = max(size - layout.data_start, 0) // per_frame
