@@ -151,6 +151,10 @@ def _header_disagreement(p: Path, layout: C3DLayout) -> str | None:
         checks.append(("storage (float or integer)",
                        "float" if layout.float_storage else "integer",
                        "float" if scale < 0 else "integer"))
+        # the header's copy of POINT:SCALE (words 7-8), in the processor's float format
+        header_scale = _c3d_float(head[12:16], layout.processor)
+        if header_scale == header_scale and not np.isclose(header_scale, scale, rtol=1e-6):
+            checks.append(("point scale", f"{header_scale:g}", f"{scale:g}"))
     for what, header, parameter in checks:
         if parameter is not None and header != parameter:
             return (f"its header's {what} ({header}) disagrees with its parameter section "
@@ -209,7 +213,9 @@ def read_c3d(path, units: str | None = None) -> Recording:
     from facemotion.io.c3d_points import describe_dropped, non_marker_points
 
     p = check_readable(path)
-    check_c3d_size(p)
+    damaged = _header_disagreement(p, check_c3d_size(p))
+    if damaged:  # the data section's size fits; the values may still be right
+        logging.getLogger("facemotion").warning("%s: %s", p, damaged)
     try:
         c = ezc3d.c3d(str(p))
     except Exception as e:  # ezc3d raises RuntimeError/IOError with terse messages
