@@ -207,8 +207,9 @@ def mutate_text(data: bytes, kind: str, rng) -> bytes | None:
     out = _mutate_text(data, kind, rng)
     if out is not None:
         a, b = data.split(b"\n"), out.split(b"\n")
-        k = next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), min(len(a), len(b)))
-        DID[0] = (f"line {k + 1}: {a[k][:60]!r} -> {b[k][:60]!r}" if k < min(len(a), len(b))
+        common = min(len(a), len(b))
+        k = next((i for i in range(common) if a[i] != b[i]), common)
+        DID[0] = (f"line {k + 1}: {a[k][:60]!r} -> {b[k][:60]!r}" if k < common
                   else f"{len(a)} -> {len(b)} lines")
     return out
 
