@@ -186,9 +186,12 @@ def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
     """
     import ezc3d
 
+    from facemotion.io.c3d import check_c3d_size
+
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: file not found")
+    check_c3d_size(p)  # a damaged parameter section can crash ezc3d
     try:
         c = ezc3d.c3d(str(p))
     except Exception as e:

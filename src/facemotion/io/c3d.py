@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, token
 from facemotion.io.atomic import atomic_path
 from facemotion.io.base import check_readable, unit_scale
 from facemotion.io.recording import Recording, finite_samples
@@ -91,6 +91,62 @@ def _c3d_parameter(section: bytes, processor: str, group: str, name: str):
     return None
 
 
+def _entry_problem(section: bytes, pos: int, end: str) -> tuple[str | None, int, int, str]:
+    """One entry of a parameter section at ``pos``: (what is wrong or None, its group or
+    parameter id, the next entry's position or 0 after the last, its name)."""
+    nchars, ident = struct.unpack("bb", section[pos:pos + 2])
+    name = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1")
+    off_at = pos + 2 + abs(nchars)
+    if off_at + 2 > len(section):
+        return "runs past the section", ident, 0, name
+    (offset,) = struct.unpack(end + "h", section[off_at:off_at + 2])
+    nxt = off_at + offset if offset > 0 else 0
+    limit = nxt or len(section)
+    if offset < 0 or limit > len(section):
+        return "points past the section", ident, nxt, name
+    body = off_at + 2
+    if ident > 0:  # a parameter: type, dimensions, data, then its description
+        if body + 2 > limit:
+            return "is cut", ident, nxt, name
+        dtype, ndim = struct.unpack("bb", section[body:body + 2])
+        if dtype not in (-1, 1, 2, 4) or not 0 <= ndim <= 7 or body + 2 + ndim > limit:
+            return f"has type {dtype} and {ndim} dimensions", ident, nxt, name
+        count = int(np.prod(list(section[body + 2:body + 2 + ndim]), dtype=np.int64))
+        body += 2 + ndim + abs(dtype) * count
+    if body + 1 > limit:
+        return "has no room for its data and description", ident, nxt, name
+    (desc,) = struct.unpack("b", section[body:body + 1])
+    if desc < 0 or body + 1 + desc > limit:
+        return "has a description longer than its room", ident, nxt, name
+    return None, ident, nxt, name
+
+
+def check_c3d_parameters(path, section: bytes, processor: str) -> None:
+    """InputError naming the damaged entry if the parameter section's chain of groups and
+    parameters is not whole: every entry within the section, its type, dimensions, data and
+    description within its own room, and every parameter in a group the section defines
+    (ezc3d trusts these bytes; a damaged one can crash the process)."""
+    end = ">" if processor == "MIPS" else "<"
+    pos, groups, params = 4, set(), []
+    while pos + 2 <= len(section) and section[pos] != 0:
+        problem, ident, nxt, name = _entry_problem(section, pos, end)
+        if problem:
+            raise InputError(f"{path}: C3D parameter section is damaged: the entry at byte "
+                             f"{pos} ({token(name.strip())}) {problem}")
+        if ident < 0:
+            groups.add(-ident)
+        else:
+            params.append((ident, name, pos))
+        if not nxt:
+            break
+        pos = nxt
+    for ident, name, at in params:
+        if ident not in groups:
+            raise InputError(f"{path}: C3D parameter section is damaged: parameter "
+                             f"{token(name.strip())} at byte {at} belongs to group {ident}, "
+                             "which the section does not define")
+
+
 def c3d_layout(path) -> C3DLayout:
     """Read the layout a C3D file declares: its 512-byte header, and POINT:FRAMES when the
     header's 16-bit frame numbers cannot hold the count (the C3D User Guide's convention)."""
@@ -106,6 +162,8 @@ def c3d_layout(path) -> C3DLayout:
                          f"(processor type byte {section[3] if len(section) > 3 else None})")
     section = section[:max(section[2], 1) * 512]
     processor = _C3D_PROCESSORS[section[3]]
+    if processor != "MIPS":  # ezc3d refuses every MIPS (SGI) file before reading further
+        check_c3d_parameters(p, section, processor)
     end = ">" if processor == "MIPS" else "<"
     points, analog, first, last = struct.unpack(end + "4H", head[2:10])
     # sign of the scale factor (a float in the processor's format; only its sign bit matters)
