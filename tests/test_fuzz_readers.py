@@ -70,6 +70,22 @@ KNOWN: dict[tuple[str, str], str] = {
     "other intervals",
     ("textgrid", "insert_line"): ISSUE22 + "TextGrid (praatio): an inserted line reads as "
     "other intervals",
+    ("textgrid", "delete_line"): ISSUE22 + "TextGrid (praatio): a deleted line reads as other "
+    "intervals",
+    ("textgrid", "swap_lines"): ISSUE22 + "TextGrid (praatio): swapped lines read as other "
+    "intervals",
+    ("textgrid", "delete_field"): ISSUE22 + "TextGrid (praatio): 'intervals [3]:' cut to "
+    "'intervals' still reads",
+    ("textgrid", "insert_field"): ISSUE22 + "TextGrid (praatio): a repeated word inside a "
+    "quoted text reads as another text",
+    ("openface_csv", "truncate"): ISSUE22 + "OpenFace CSV: a file cut inside a line reads the "
+    "cut line",
+    ("openface_csv", "delete_line"): ISSUE22 + "OpenFace CSV: a missing frame (frame column) "
+    "is not reported",
+    ("openface_csv", "insert_field"): ISSUE22 + "OpenFace CSV: a repeated header field reads "
+    "as other columns",
+    ("qualisys_tsv", "truncate"): ISSUE22 + "QTM TSV: fewer frames than NO_OF_FRAMES are "
+    "read without a word",
 }
 
 

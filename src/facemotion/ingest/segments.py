@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError, token
+from facemotion.errors import InputError, exception_detail, token
 from facemotion.io.recording import Recording
 
 KINDS = ("textgrid", "events", "tsv")
@@ -151,9 +151,8 @@ def read_textgrid_tier(path, tier: str) -> list[tuple[float, float, str]]:
     try:
         tg = textgrid.openTextgrid(str(p), includeEmptyIntervals=False)
     except Exception as e:  # praatio raises several kinds on malformed files
-        detail = str(e).splitlines()[0][:80] if str(e) else "no detail"
-        raise InputError(f"{p}: cannot read as a Praat TextGrid ({type(e).__name__}: "
-                         f"{detail})") from None
+        raise InputError(f"{p}: cannot read as a Praat TextGrid "
+                         f"({exception_detail(e)})") from None
     if tier not in tg.tierNames:
         tiers = ", ".join(token(t) for t in tg.tierNames[:10]) or "none"
         raise InputError(f"{p}: no tier {tier!r} (tiers: {tiers})")

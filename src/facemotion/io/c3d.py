@@ -155,6 +155,9 @@ def c3d_layout(path) -> C3DLayout:
         head = fh.read(512)
         if len(head) < 512 or head[1] != 0x50:
             raise InputError(f"{p}: not a C3D file (no valid 512-byte header)")
+        if head[0] < 2:
+            raise InputError(f"{p}: C3D header is damaged: its parameter section would start "
+                             f"in block {head[0]}, inside the header")
         fh.seek((head[0] - 1) * 512)
         section = fh.read(255 * 512)
     if len(section) < 4 or section[3] not in _C3D_PROCESSORS:
@@ -202,8 +205,14 @@ def _header_disagreement(p: Path, layout: C3DLayout) -> str | None:
     if used == 0:
         checks.append(("analog samples per frame", layout.analog_per_frame, 0))
     elif used is not None and a_rate and p_rate and a_rate == a_rate and p_rate == p_rate:
+        ratio = a_rate / p_rate  # whole in a sound file: analog samples per 3-D frame
         checks.append(("analog samples per frame", layout.analog_per_frame,
-                       int(used) * int(round(a_rate / p_rate))))
+                       int(used) * ratio if ratio != round(ratio) else int(used) * int(ratio)))
+    rate = param("RATE")
+    header_rate = _c3d_float(head[20:24], layout.processor)
+    if rate is not None and rate == rate and header_rate == header_rate and header_rate > 0 \
+            and header_rate != rate:  # the same 32-bit float, written twice
+        checks.append(("frame rate", f"{header_rate:g}", f"{rate:g}"))
     scale = param("SCALE")
     if scale is not None and scale == scale:
         checks.append(("storage (float or integer)",
@@ -211,7 +220,7 @@ def _header_disagreement(p: Path, layout: C3DLayout) -> str | None:
                        "float" if scale < 0 else "integer"))
         # the header's copy of POINT:SCALE (words 7-8), in the processor's float format
         header_scale = _c3d_float(head[12:16], layout.processor)
-        if header_scale == header_scale and not np.isclose(header_scale, scale, rtol=1e-6):
+        if header_scale == header_scale and header_scale != scale:
             checks.append(("point scale", f"{header_scale:g}", f"{scale:g}"))
     for what, header, parameter in checks:
         if parameter is not None and header != parameter:
