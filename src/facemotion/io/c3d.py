@@ -64,7 +64,8 @@ def _c3d_parameter(section: bytes, processor: str, group: str, name: str):
         nchars, ident = struct.unpack("bb", section[pos:pos + 2])
         if nchars == 0:
             break
-        key = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1").strip().upper()
+        # names as written: ezc3d matches them exactly, so a damaged letter is no match
+        key = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1").strip()
         off_at = pos + 2 + abs(nchars)
         if off_at + 2 > len(section):
             break
@@ -202,7 +203,10 @@ def _header_disagreement(p: Path, layout: C3DLayout) -> str | None:
     used = _c3d_parameter(section, layout.processor, "ANALOG", "USED")
     a_rate = _c3d_parameter(section, layout.processor, "ANALOG", "RATE")
     p_rate = param("RATE")
-    if used == 0:
+    if used is None and layout.analog_per_frame:
+        checks.append(("analog samples per frame", layout.analog_per_frame,
+                       "none: no ANALOG:USED"))
+    elif used == 0:
         checks.append(("analog samples per frame", layout.analog_per_frame, 0))
     elif used is not None and a_rate and p_rate and a_rate == a_rate and p_rate == p_rate:
         ratio = a_rate / p_rate  # whole in a sound file: analog samples per 3-D frame
