@@ -56,4 +56,8 @@ onsuccess:
     print_closing_summary()
 
 
+# The input digests are cached once the whole study is parsed (a refused parse writes
+# nothing, nor does a dry run of a study that has not run yet).
+if not workflow.dryrun or Path(RESULTS).is_dir():
+    _DIGESTS.save()
 _PARSE.done()

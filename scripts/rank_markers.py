@@ -1,6 +1,7 @@
 """Rank a dataset's markers by QR with column pivoting; epsilon-rank (paper Fig. 2)."""
 
 import numpy as np
+import pandas as pd
 
 from facemotion.ingest.displacement_file import load_displacements
 from facemotion.ingest.displacements import split_roles
@@ -12,6 +13,12 @@ from facemotion.ranking.epsilon_rank import (
     noise_epsilon,
     remainder_norms,
     singular_values,
+)
+from facemotion.ranking.filled import (
+    describe_pivots,
+    left_out_markers,
+    mostly_filled_pivots,
+    with_fractions,
 )
 from facemotion.ranking.routes import rank_for_study, ranking_summary, route_accuracy
 from facemotion.regions.target import NOISE_LEVEL, headline_facts
@@ -29,6 +36,15 @@ def main(sm, log, prov):
     # beside them sigma_k and ||R22||_2 before pivot k (L&M Sec. III: sigma_{k+1} <= ||R22||_2)
     table["singular_value"] = singular_values(ranking)
     table["remainder_norm"] = remainder_norms(ranking)
+    gap_report = pd.read_csv(sm.input.gap_report, sep="\t", dtype={"marker": str},
+                             keep_default_na=False)
+    table = with_fractions(table, gap_report)  # how much of each marker is made up
+    mostly_filled = mostly_filled_pivots(table, p.flag_pivots, p.flag_filled_fraction)
+    flagged = describe_pivots(mostly_filled)
+    if flagged:
+        log.warning("mostly filled among the first %d pivots (more than %g of the frames "
+                    "made up by gap filling): %s", p.flag_pivots, p.flag_filled_fraction,
+                    flagged)
     write_table(table, sm.output.r_values, "r_values", prov)
     write_table(table.head(p.top_n), sm.output.r_values_top, "r_values", prov)
     summary = ranking_summary(ranking, int(np.count_nonzero(~train.A.any(axis=1))))
@@ -53,11 +69,14 @@ def main(sm, log, prov):
     if np.isfinite(noise.noise_mm) and noise.noise_mm > 0:
         extra[noise_epsilon(noise.noise_mm, ranking.rows, ranking.n, norm)] = NOISE_LEVEL
     rank = epsilon_rank_table(ranking, list(p.tolerances_mm), norm, summary, extra=extra)
+    rank["mostly_filled_pivots"] = flagged
+    rank["left_out_filled"] = ", ".join(left_out_markers(gap_report))
     write_table(rank, sm.output.rank, "rank", prov)
     log.info("R normalisation %r; epsilon-rank (smallest k with ||R22||_2 <= epsilon) and the "
              "diagonal count: %s", norm,
              rank[["tolerance_mm", "epsilon_rank", "diagonal_count"]].to_dict("records"))
-    fig = plot_r_values({p.label: table}, tolerances=tuple(p.tolerances_mm))
+    fig = plot_r_values({p.label: table}, tolerances=tuple(p.tolerances_mm),
+                        flagged={p.label: mostly_filled})
     save_figure(fig, figure_files(sm.output, "png"), "r_values", prov)
 
 

@@ -4,6 +4,7 @@ import pandas as pd
 
 from facemotion.plots.rank import plot_r_values
 from facemotion.plots.selection import plot_selection_agreement
+from facemotion.ranking.filled import mostly_filled_pivots
 from facemotion.ranking.result import selection_table
 from facemotion.study.adapter import run_step
 from facemotion.study.outputs import figure_files
@@ -25,7 +26,10 @@ def main(sm, log, prov):
         r.insert(0, "dataset", lab)
         ranks.append(r)
     write_table(pd.concat(ranks, ignore_index=True), sm.output.rank_summary, "summary", prov)
-    fig = plot_r_values(r_tables, tolerances=tuple(sm.params.tolerances_mm))
+    flagged = {lab: mostly_filled_pivots(t, sm.params.flag_pivots,
+                                         sm.params.flag_filled_fraction)
+               for lab, t in r_tables.items() if "filled_fraction" in t}
+    fig = plot_r_values(r_tables, tolerances=tuple(sm.params.tolerances_mm), flagged=flagged)
     save_figure(fig, figure_files(sm.output, "r_values_png"), "r_values_all", prov)
 
 

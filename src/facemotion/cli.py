@@ -338,6 +338,26 @@ def _workflow_snakefile() -> Path:
     return snakefile
 
 
+def _check_config_files(args: list[str]) -> None:
+    """Each file after --configfile/--configfiles exists (Snakemake reads them from the
+    current directory, before anything else, and fails with a long traceback)."""
+    files, taking = [], False
+    for a in args:
+        if a.startswith("--configfile=") or a.startswith("--configfiles="):
+            files.append(a.split("=", 1)[1])
+            taking = False
+        elif a in ("--configfile", "--configfiles"):
+            taking = True
+        elif taking and not a.startswith("-"):
+            files.append(a)
+        else:
+            taking = False
+    for f in files:
+        if not Path(f).expanduser().is_file():
+            raise InputError(f"--configfile {f}: no such file (looked for "
+                             f"{Path(f).expanduser().absolute()})")
+
+
 @cli.command(context_settings={"ignore_unknown_options": True, "allow_extra_args": True})
 @click.argument("snakemake_args", nargs=-1, type=click.UNPROCESSED)
 def study(snakemake_args) -> None:
@@ -355,6 +375,7 @@ def study(snakemake_args) -> None:
     args = list(snakemake_args)
     if args[:1] == ["--"]:
         args = args[1:]
+    _check_config_files(args)
     if not any(a in ("-s", "--snakefile") or a.startswith("--snakefile=") for a in args):
         args = ["--snakefile", str(_workflow_snakefile()), *args]
     scheduling = ("-c", "--cores", "-j", "--jobs", "--profile", "--workflow-profile", "-h",

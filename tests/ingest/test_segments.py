@@ -156,6 +156,22 @@ def test_textgrid_errors(tmp_path):
         segment_subject("textgrid:bad.TextGrid#s", [take], "c3d", tmp_path, "row 2")
 
 
+def test_one_textgrid_cuts_one_take(tmp_path):
+    """day1/block1.c3d and day2/block1.c3d with '{stem}.TextGrid' beside the sheet: one file
+    for two takes is refused, naming both."""
+    takes = []
+    for day in ("day1", "day2"):
+        (tmp_path / day).mkdir()
+        takes.append(str(tmp_path / day / "block1.c3d"))
+    _textgrid(tmp_path / "block1.TextGrid", {"sentence": [Interval(0.5, 2.0, "one")]})
+    with pytest.raises(InputError, match=r"takes .*day1/block1.c3d and .*day2/block1.c3d "
+                                         r"both resolve to the TextGrid .*block1.TextGrid"):
+        segment_subject("textgrid:{stem}.TextGrid#sentence", takes, "c3d", tmp_path, "row 2")
+    segs, _ = segment_subject("textgrid:{stem}.TextGrid#sentence", takes[:1], "c3d",
+                              tmp_path, "row 2")
+    assert [s.name for s in segs] == ["one"]
+
+
 def test_textgrid_saved_by_praat_in_utf16(tmp_path):
     """Praat saves non-ASCII TextGrids as UTF-16; the sentence names keep their letters."""
     _textgrid(tmp_path / "t.TextGrid", {"s": [Interval(0.25, 1.5, "Ça va, señor?")]})
@@ -198,6 +214,20 @@ def test_tsv_errors(tmp_path, rows, match):
     _tsv(tmp_path / "iv.tsv", rows)
     with pytest.raises(InputError, match=match):
         segment_subject("tsv:iv.tsv", takes, "trc", tmp_path, "row 3")
+
+
+def test_tsv_hash_inside_a_name_is_kept(tmp_path):
+    """Only whole lines starting with '#' are comments; their lines still count."""
+    (tmp_path / "iv.tsv").write_text("# intervals of block A\ntake\tstart_s\tend_s\tname\n"
+                                     "A\t0\t1\tsentence #1\n#A\t1\t2\tleft out\n"
+                                     "A\t2\t3\tsentence #2 # two\nA\tx\t4\tbad\n")
+    with pytest.raises(InputError, match=r"iv.tsv, line 6: start_s 'x' is not a number"):
+        segment_subject("tsv:iv.tsv", [str(tmp_path / "A.c3d")], "c3d", tmp_path, "row 2")
+    text = (tmp_path / "iv.tsv").read_text().rsplit("A\tx", 1)[0]
+    (tmp_path / "iv.tsv").write_text(text)
+    segs, _ = segment_subject("tsv:iv.tsv", [str(tmp_path / "A.c3d")], "c3d", tmp_path,
+                              "row 2")
+    assert [s.name for s in segs] == ["sentence #1", "sentence #2 # two"]
 
 
 def test_tsv_missing_columns(tmp_path):

@@ -270,7 +270,7 @@ def test_messages_quote_only_a_short_token(tmp_path):
         read_csv(tmp_path / "shadow")
     msg = str(e.value)
     assert "first column must be 'time'" in msg and "\n" not in msg
-    assert secret[:20] not in msg and "'root:$6$abcdefgh...'" in msg
+    assert secret[:8] not in msg and f"got a text of {len(secret)} characters" in msg
     trc = HAND_TRC.replace("0.4\t0.5", "0.4\t" + secret.replace(":", ""))
     (tmp_path / "s.trc").write_text(trc)
     with pytest.raises(InputError) as e:

@@ -117,7 +117,7 @@ def test_a_jobs_own_process_ends_once_its_outputs_and_log_are_written(tmp_path, 
     script = tmp_path / "job.py"
     script.write_text(JOB)
     proc = subprocess.run([sys.executable, str(script), str(tmp_path / "out.txt"), outcome],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, cwd=tmp_path)  # the study root
     log = (tmp_path / "job.log").read_text()
     assert "not reached" not in proc.stdout
     assert not (tmp_path / "teardown.txt").exists()
@@ -163,5 +163,6 @@ def test_a_job_script_imports_with_the_collector_off_and_runs_its_step_with_it_o
     and on in the step; in any other process importing facemotion leaves it alone."""
     script = tmp_path / "job.py"
     script.write_text(SCRIPT)
-    subprocess.run([sys.executable, str(script), str(tmp_path / "out.txt"), kind], check=True)
+    subprocess.run([sys.executable, str(script), str(tmp_path / "out.txt"), kind], check=True,
+                   cwd=tmp_path)  # a job runs in its study's root
     assert (tmp_path / "out.txt").read_text() == expected

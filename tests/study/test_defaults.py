@@ -130,6 +130,10 @@ MAPPING: dict[str, list[tuple]] = {
                 ("facemotion.ranking.routes:rank_markers", "seed"),
                 ("facemotion.ranking.routes:rank_for_study", "seed")],
     "qr.optimality_k_max": [("facemotion.regions.optimality:subset_optimality", "k_max")],
+    "qr.flag_pivots": [("facemotion.ranking.filled:FLAG_PIVOTS", None),
+                       ("facemotion.ranking.filled:mostly_filled_pivots", "first_k")],
+    "qr.flag_filled_fraction": [("facemotion.ranking.filled:FLAG_FILLED_FRACTION", None),
+                                ("facemotion.ranking.filled:mostly_filled_pivots", "share")],
     "fit.grid_n": [("facemotion.plots.facemap:interpolate_field", "grid_n"),
                    ("facemotion.plots.regions:plot_region_maps", "grid_n"),
                    ("facemotion.plots.regions:plot_orthogonal_directions", "grid_n")],
@@ -176,7 +180,7 @@ KNOWN_DIFFERENCES: set[tuple[str, str]] = set()
 #: which jobs run, table sizes) or ones whose library counterpart is deliberately different.
 WORKFLOW_ONLY = {
     "study", "subjects", "shared_data", "default_datasets", "report_title",
-    "qr.route_check", "qr.top_n", "qr.table_orders",
+    "qr.route_check", "qr.top_n", "qr.table_orders", "qr.max_filled_fraction",
     "fit.k", "eval.trajectory_marker", "eval.trajectory_sentence", "eval.trajectory_k",
     "animation.enabled", "animation.k", "animation.sentences", "animation.fps",
     "animation.format",

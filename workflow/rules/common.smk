@@ -20,7 +20,14 @@ from facemotion.study.invocation import (
     same_study_command,
     sample_benchmarks_every,
 )
-from facemotion.study.outputs import artifact, figure_files, sidecar, table, tables
+from facemotion.study.outputs import (
+    artifact,
+    check_inside_study,
+    figure_files,
+    sidecar,
+    table,
+    tables,
+)
 from facemotion.study.outputs import figure as _figure
 from facemotion.study.settings import (
     check_lip_frames,
@@ -32,9 +39,11 @@ from facemotion.study.settings import (
     validate_config,
     validate_sheet,
 )
+from facemotion.study.fingerprint import FingerprintCache, fingerprint
 from facemotion.study.sheet import (
     dataset_params,
     read_subject_sheet,
+    recorded_names,
     resolve_datasets,
     simulation_params,
     virtual_talkers,
@@ -157,6 +166,31 @@ with exit_on_error():
             "no datasets: set default_datasets: true, define config.datasets or "
             "virtual_talkers"
         )
+
+
+# Inputs outside the results are named as the study records them (relative to the study
+# root, the sheet's folder or the shared data), so outputs do not depend on where it runs.
+RECORDED = recorded_names(SUBJECTS, Path.cwd(), SHEET.parent, SHARED_DATA)
+# Reruns follow content: each dataset's recordings and segmentation files by their SHA-256
+# (a rule param, so Snakemake's params trigger reruns loading when a file's content changes,
+# whatever its modification time); digests cached by file identity and times.
+_DIGESTS = FingerprintCache(f"{RESULTS}/.cache/input_digests.json")
+with exit_on_error():
+    FINGERPRINTS = {
+        d: fingerprint(
+            SUBJECTS[ds.subject].recordings + SUBJECTS[ds.subject].segment_sources,
+            _DIGESTS,
+            RECORDED,
+        )
+        for d, ds in DATASETS.items()
+        if not SUBJECTS[ds.subject].simulate
+    }
+for _path, _old, _new in _DIGESTS.changed:
+    print(
+        f"facemotion: {RECORDED.get(_path, _path)}: content changed since the last run "
+        f"(sha256 {_old[:16]} -> {_new[:16]}); what reads it runs again",
+        file=sys.stderr,
+    )
 
 
 def _dataset_mesh_path(dataset):
@@ -321,6 +355,12 @@ def dataset_label(wildcards):
 def per_dataset(pattern, datasets):
     """One path per dataset, in the order of ``datasets`` (an aggregation's inputs)."""
     return [pattern.format(dataset=d) for d in datasets]
+
+
+def load_files_at(wildcards):
+    """Where a dataset's input files lie, by the names the study records them by."""
+    subj = SUBJECTS[DATASETS[wildcards.dataset].subject]
+    return {RECORDED.get(f, f): f for f in subj.recordings + subj.segment_sources}
 
 
 def load_inputs(wildcards):
@@ -491,4 +531,12 @@ def stream_grams(wildcards):
         "<results>/{dataset}/stream/takes/{take}.gram.npz",
         dataset=wildcards.dataset,
         take=stream_take_ids(wildcards.dataset),
+    )
+
+
+# No setting or sheet value places a file outside the study root (checked again by each job
+# before it writes, symbolic links included).
+with exit_on_error():
+    check_inside_study(
+        [RESULTS] + [workflow.pathvars.apply(p) for p in final_outputs()]
     )

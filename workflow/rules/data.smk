@@ -26,11 +26,17 @@ rule load_dataset:
         mem_mb=4000,
         runtime=20,
     params:
-        ds=lambda wc: dataset_params(SUBJECTS, DATASETS, wc.dataset),
-        recordings=lambda wc: SUBJECTS[DATASETS[wc.dataset].subject].recordings,
+        ds=lambda wc: dataset_params(SUBJECTS, DATASETS, wc.dataset, RECORDED),
+        recordings=lambda wc: [
+            RECORDED.get(r, r)
+            for r in SUBJECTS[DATASETS[wc.dataset].subject].recordings
+        ],
+        fingerprint=lambda wc: FINGERPRINTS.get(wc.dataset, []),
+        files_at=load_files_at,
         gaps=config["gaps"],
         checks=config["checks"],
         neutral=config["neutral"],
+        max_filled_fraction=config["qr"]["max_filled_fraction"],
     message:
         "load_dataset {wildcards.dataset}: files -> head-aligned, gap-filled displacement matrix A"
     script:

@@ -5,6 +5,7 @@
 rule rank_markers:
     input:
         unpack(data),
+        gap_report="<results>/{dataset}/data/gap_report.tsv",
     output:
         **tables("<results>/{dataset}/qr", "r_values", "r_values_top", "rank"),
         **figure(
@@ -36,6 +37,8 @@ rule rank_markers:
         target_mm=config["eval"]["target_error_mm"],
         resamples=config["eval"]["interval_resamples"],
         level=config["eval"]["interval_level"],
+        flag_pivots=config["qr"]["flag_pivots"],
+        flag_filled_fraction=config["qr"]["flag_filled_fraction"],
     message:
         "rank_markers {wildcards.dataset}: QR with column pivoting, epsilon-rank (L&M Fig. 2)"
     script:
@@ -72,6 +75,8 @@ rule summarise_ranking:
         labels=[DATASETS[d].label for d in DATASETS],
         table_orders=config["qr"]["table_orders"],
         tolerances_mm=config["qr"]["tolerances_mm"],
+        flag_pivots=config["qr"]["flag_pivots"],
+        flag_filled_fraction=config["qr"]["flag_filled_fraction"],
     message:
         "summarise_ranking: Table I, epsilon-ranks and Fig. 2 across datasets"
     script:

@@ -20,13 +20,14 @@ training and held-out sentences by number.
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError, MissingFileError, token
+from facemotion.errors import InputError, MissingFileError, exception_detail, token
 from facemotion.io.recording import Recording
 
 KINDS = ("textgrid", "events", "tsv")
@@ -304,11 +305,12 @@ def read_c3d_events(path, subject_prefix: str | None = None) -> TakeEvents:
     event outside the take (before its first sample or after its end) is an error naming it.
     With ``subject_prefix``, events of other subjects (EVENT:SUBJECTS) are ignored.
     """
-    from facemotion.io.c3d import open_c3d
+    from facemotion.io.c3d import check_c3d_size, open_c3d
 
     p = Path(path)
     if not p.is_file():
         raise MissingFileError(f"{p}: file not found")
+    check_c3d_size(p)  # a damaged parameter section can crash ezc3d
     c = open_c3d(p)
     point = c["parameters"]["POINT"]
     rate_v = np.ravel(point["RATE"]["value"]) if "RATE" in point else np.array([])
@@ -402,10 +404,19 @@ def read_interval_table(path) -> list[tuple[int, str, float, float, str]]:
     if not p.is_file():
         raise MissingFileError(f"{p}: segments table not found")
     try:
-        df = pd.read_csv(p, sep="\t", dtype=str, keep_default_na=False, comment="#")
+        text = p.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{p}: segments table cannot be read as UTF-8 text "
+                         f"({type(e).__name__})") from None
+    # only whole lines starting with '#' are comments: a '#' inside a name is part of it
+    kept = [(n, line) for n, line in enumerate(text.splitlines(), start=1)
+            if line.strip() and not line.lstrip().startswith("#")]
+    try:
+        df = pd.read_csv(io.StringIO("\n".join(line for _, line in kept) + "\n"), sep="\t",
+                         dtype=str, keep_default_na=False, quoting=3)  # literal cells
     except Exception as e:
-        raise InputError(f"{p}: cannot be parsed as TSV ({str(e).splitlines()[0][:80]})") \
-            from None
+        raise InputError(f"{p}: cannot be parsed as TSV ({type(e).__name__})") from None
+    line_of = [n for n, _ in kept[1:]]
     df.columns = [str(c).strip() for c in df.columns]
     missing = [c for c in TSV_COLUMNS if c not in df.columns]
     if missing:
@@ -414,7 +425,8 @@ def read_interval_table(path) -> list[tuple[int, str, float, float, str]]:
     if df.empty:
         raise InputError(f"{p}: segments table has no rows")
     rows = []
-    for i, r in enumerate(df.itertuples(index=False), start=2):
+    for j, r in enumerate(df.itertuples(index=False)):
+        i = line_of[j]
         rec = dict(zip(df.columns, r, strict=True))
         vals = []
         for col in ("start_s", "end_s"):
@@ -464,8 +476,14 @@ def segment_subject(cell: str, takes: list[str], fmt: str, sheet_dir, where: str
         if "{stem}" not in spec.path and len(takes) > 1:
             raise InputError(f"{where}: segments path {spec.path!r} must hold {{stem}} (one "
                              f"TextGrid per take) since the subject has {len(takes)} takes")
+        owner: dict[str, str] = {}
         for take in takes:
             path = _resolve(spec.path, take, sheet_dir, shared_data)
+            first = owner.setdefault(str(Path(path).resolve()), take)
+            if first != take:
+                raise InputError(f"{where}: takes {first} and {take} both resolve to the "
+                                 f"TextGrid {path}; a TextGrid cuts one take (give the takes "
+                                 "different file names)")
             try:
                 rows, grid_end = read_textgrid_intervals(path, spec.tier)
                 check_intervals([(s, e) for s, e, _ in rows], f"{path} tier {spec.tier!r}")

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, token
 from facemotion.io.atomic import atomic_path
 from facemotion.io.base import check_readable, unit_scale
 from facemotion.io.recording import Recording, finite_samples
@@ -64,7 +64,8 @@ def _c3d_parameter(section: bytes, processor: str, group: str, name: str):
         nchars, ident = struct.unpack("bb", section[pos:pos + 2])
         if nchars == 0:
             break
-        key = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1").strip().upper()
+        # names as written: ezc3d matches them exactly, so a damaged letter is no match
+        key = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1").strip()
         off_at = pos + 2 + abs(nchars)
         if off_at + 2 > len(section):
             break
@@ -91,6 +92,62 @@ def _c3d_parameter(section: bytes, processor: str, group: str, name: str):
     return None
 
 
+def _entry_problem(section: bytes, pos: int, end: str) -> tuple[str | None, int, int, str]:
+    """One entry of a parameter section at ``pos``: (what is wrong or None, its group or
+    parameter id, the next entry's position or 0 after the last, its name)."""
+    nchars, ident = struct.unpack("bb", section[pos:pos + 2])
+    name = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1")
+    off_at = pos + 2 + abs(nchars)
+    if off_at + 2 > len(section):
+        return "runs past the section", ident, 0, name
+    (offset,) = struct.unpack(end + "h", section[off_at:off_at + 2])
+    nxt = off_at + offset if offset > 0 else 0
+    limit = nxt or len(section)
+    if offset < 0 or limit > len(section):
+        return "points past the section", ident, nxt, name
+    body = off_at + 2
+    if ident > 0:  # a parameter: type, dimensions, data, then its description
+        if body + 2 > limit:
+            return "is cut", ident, nxt, name
+        dtype, ndim = struct.unpack("bb", section[body:body + 2])
+        if dtype not in (-1, 1, 2, 4) or not 0 <= ndim <= 7 or body + 2 + ndim > limit:
+            return f"has type {dtype} and {ndim} dimensions", ident, nxt, name
+        count = int(np.prod(list(section[body + 2:body + 2 + ndim]), dtype=np.int64))
+        body += 2 + ndim + abs(dtype) * count
+    if body + 1 > limit:
+        return "has no room for its data and description", ident, nxt, name
+    (desc,) = struct.unpack("b", section[body:body + 1])
+    if desc < 0 or body + 1 + desc > limit:
+        return "has a description longer than its room", ident, nxt, name
+    return None, ident, nxt, name
+
+
+def check_c3d_parameters(path, section: bytes, processor: str) -> None:
+    """InputError naming the damaged entry if the parameter section's chain of groups and
+    parameters is not whole: every entry within the section, its type, dimensions, data and
+    description within its own room, and every parameter in a group the section defines
+    (ezc3d trusts these bytes; a damaged one can crash the process)."""
+    end = ">" if processor == "MIPS" else "<"
+    pos, groups, params = 4, set(), []
+    while pos + 2 <= len(section) and section[pos] != 0:
+        problem, ident, nxt, name = _entry_problem(section, pos, end)
+        if problem:
+            raise InputError(f"{path}: C3D parameter section is damaged: the entry at byte "
+                             f"{pos} ({token(name.strip())}) {problem}")
+        if ident < 0:
+            groups.add(-ident)
+        else:
+            params.append((ident, name, pos))
+        if not nxt:
+            break
+        pos = nxt
+    for ident, name, at in params:
+        if ident not in groups:
+            raise InputError(f"{path}: C3D parameter section is damaged: parameter "
+                             f"{token(name.strip())} at byte {at} belongs to group {ident}, "
+                             "which the section does not define")
+
+
 def c3d_layout(path) -> C3DLayout:
     """Read the layout a C3D file declares: its 512-byte header, and POINT:FRAMES when the
     header's 16-bit frame numbers cannot hold the count (the C3D User Guide's convention)."""
@@ -99,6 +156,9 @@ def c3d_layout(path) -> C3DLayout:
         head = fh.read(512)
         if len(head) < 512 or head[1] != 0x50:
             raise InputError(f"{p}: not a C3D file (no valid 512-byte header)")
+        if head[0] < 2:
+            raise InputError(f"{p}: C3D header is damaged: its parameter section would start "
+                             f"in block {head[0]}, inside the header")
         fh.seek((head[0] - 1) * 512)
         section = fh.read(255 * 512)
     if len(section) < 4 or section[3] not in _C3D_PROCESSORS:
@@ -106,6 +166,8 @@ def c3d_layout(path) -> C3DLayout:
                          f"(processor type byte {section[3] if len(section) > 3 else None})")
     section = section[:max(section[2], 1) * 512]
     processor = _C3D_PROCESSORS[section[3]]
+    if processor != "MIPS":  # ezc3d refuses every MIPS (SGI) file before reading further
+        check_c3d_parameters(p, section, processor)
     end = ">" if processor == "MIPS" else "<"
     points, analog, first, last = struct.unpack(end + "4H", head[2:10])
     # sign of the scale factor (a float in the processor's format; only its sign bit matters)
@@ -121,12 +183,69 @@ def c3d_layout(path) -> C3DLayout:
                      (max(start_block, 1) - 1) * 512)
 
 
+def _header_disagreement(p: Path, layout: C3DLayout) -> str | None:
+    """Where the 512-byte header contradicts the parameter section (POINT:USED,
+    POINT:DATA_START, POINT:FRAMES, POINT:SCALE's sign), or None: a damaged header, which a
+    size check alone would take for a file cut short."""
+    with open(p, "rb") as fh:
+        head = fh.read(512)
+        fh.seek((head[0] - 1) * 512)
+        section = fh.read(255 * 512)
+    section = section[:max(section[2], 1) * 512]
+
+    def param(name):
+        return _c3d_parameter(section, layout.processor, "POINT", name)
+
+    checks = [("number of points", layout.points, param("USED")),
+              ("data start block", layout.data_start // 512 + 1, param("DATA_START"))]
+    if layout.last_frame != 0xFFFF:
+        checks.append(("number of frames", layout.frames, param("FRAMES")))
+    used = _c3d_parameter(section, layout.processor, "ANALOG", "USED")
+    a_rate = _c3d_parameter(section, layout.processor, "ANALOG", "RATE")
+    p_rate = param("RATE")
+    if used is None and layout.analog_per_frame:
+        checks.append(("analog samples per frame", layout.analog_per_frame,
+                       "none: no ANALOG:USED"))
+    elif used == 0:
+        checks.append(("analog samples per frame", layout.analog_per_frame, 0))
+    elif used is not None and a_rate and p_rate and a_rate == a_rate and p_rate == p_rate:
+        ratio = a_rate / p_rate  # whole in a sound file: analog samples per 3-D frame
+        checks.append(("analog samples per frame", layout.analog_per_frame,
+                       int(used) * ratio if ratio != round(ratio) else int(used) * int(ratio)))
+    rate = param("RATE")
+    header_rate = _c3d_float(head[20:24], layout.processor)
+    if rate is not None and rate == rate and header_rate == header_rate and header_rate > 0 \
+            and header_rate != rate:  # the same 32-bit float, written twice
+        checks.append(("frame rate", f"{header_rate:g}", f"{rate:g}"))
+    scale = param("SCALE")
+    if scale is not None and scale == scale:
+        checks.append(("storage (float or integer)",
+                       "float" if layout.float_storage else "integer",
+                       "float" if scale < 0 else "integer"))
+        # the header's copy of POINT:SCALE (words 7-8), in the processor's float format
+        header_scale = _c3d_float(head[12:16], layout.processor)
+        if header_scale == header_scale and header_scale != scale:
+            checks.append(("point scale", f"{header_scale:g}", f"{scale:g}"))
+    for what, header, parameter in checks:
+        if parameter is not None and header != parameter:
+            return (f"its header's {what} ({header}) disagrees with its parameter section "
+                    f"({parameter}): the header is damaged")
+    return None
+
+
 def check_c3d_size(path) -> C3DLayout:
     """InputError if the file is shorter than its header declares (cut in the data section,
-    or its last bytes lost); ezc3d would otherwise read it with frames silently missing."""
+    or its last bytes lost); ezc3d would otherwise read it with frames silently missing. A
+    header that contradicts the parameter section is said to be damaged, not the file cut."""
     p = Path(path)
     layout = c3d_layout(p)
     size = p.stat().st_size
+    if size < layout.size or (size - layout.size > 512
+                              and size - layout.size >= layout.data_bytes // max(layout.frames, 1)
+                              and layout.data_bytes):
+        damaged = _header_disagreement(p, layout)
+        if damaged:
+            raise InputError(f"{p}: C3D file cannot be read: {damaged}")
     if size < layout.size:
         per_frame = max(layout.data_bytes // max(layout.frames, 1), 1)
         whole = max(size - layout.data_start, 0) // per_frame
@@ -190,7 +309,9 @@ def read_c3d(path, units: str | None = None) -> Recording:
     from facemotion.io.c3d_points import describe_dropped, non_marker_points
 
     p = check_readable(path)
-    check_c3d_size(p)
+    damaged = _header_disagreement(p, check_c3d_size(p))
+    if damaged:  # the data section's size fits; the values may still be right
+        logging.getLogger("facemotion").warning("%s: %s", p, damaged)
     c = open_c3d(p)
     point = c["parameters"]["POINT"]
     data = np.asarray(c["data"]["points"], dtype=float)  # (4, markers, frames)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 
-from facemotion.errors import InputError
+from facemotion.errors import InputError, token
 from facemotion.io.recording import Recording
 
 log = logging.getLogger("facemotion")
@@ -37,7 +37,15 @@ def prefixes(labels: list[str]) -> list[str]:
 
 
 def _listing(found: list[str]) -> str:
-    return ", ".join(repr(p) if p else NO_PREFIX for p in found)
+    return ", ".join(token(p) if p else NO_PREFIX for p in found)
+
+
+def _subject_like(labels: list[str], found: list[str]) -> bool:
+    """Whether several prefixes can be subjects: each a printable name, and fewer of them
+    than half the labels (a subject has several markers)."""
+    named = [p for p in found if p]
+    return (all(p.isprintable() and len(p) <= 64 for p in named)
+            and len(found) <= max(2, len(labels) // 2))
 
 
 def subject_columns(labels: list[str], subject_prefix: str | None,
@@ -54,6 +62,10 @@ def subject_columns(labels: list[str], subject_prefix: str | None,
         return list(range(len(labels))), list(labels), None
     elif len(found) == 1:
         wanted = found[0]
+    elif not _subject_like(labels, found):
+        raise InputError(f"{where}: the marker labels do not read as 'Subject:Marker' names "
+                         f"({len(found)} different texts before ':' among {len(labels)} "
+                         "labels, or unprintable ones): the label section looks damaged")
     else:
         raise InputError(f"{where}: labels belong to several subjects (prefixes "
                          f"{_listing(found)}); choose one with the sheet's subject_prefix "

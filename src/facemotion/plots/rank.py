@@ -34,7 +34,8 @@ NUMERICAL_ZERO = 1e-9
 def plot_r_values(tables: Mapping[str, pd.DataFrame],
                   tolerances: Sequence[float] = (0.25, 0.5, 1.0),
                   annotate_below: float = 0.5, max_annotations: int = 3,
-                  column: str = "r_normalised") -> Figure:
+                  column: str = "r_normalised",
+                  flagged: Mapping[str, pd.DataFrame] | None = None) -> Figure:
     """|r_kk| of the pivots (``column``, mm) against pivot order, datasets overlaid, log y.
 
     Dashed horizontal lines mark the epsilon tolerances (|r_kk| <= ||R22||_2, so a pivot below
@@ -45,6 +46,8 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     ``annotate_below`` mm (the markers best explained by the others) are labelled, last
     first and datasets in turn, as long as a label overlaps no earlier label, the legend or a
     tolerance label and stays inside the axes; the others are left out rather than piled up.
+    ``flagged``: per dataset, the first pivots mostly made up by gap filling (rows with
+    ``order``, ``marker``, ``filled_fraction``): ringed in red and named under the axes.
     """
     require_tables(tables, ("order", "marker", column), "r values")
     fig = Figure(figsize=(7.0, 4.6))
@@ -60,7 +63,8 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
     if lows:
         # room under the lowest point for the labels of the last pivots
         ax.set_ylim(bottom=min(min(lows), min(tolerances, default=1.0)) / 4)
-    note = _zeros_note(zeros)
+    note = "\n".join(x for x in (_zeros_note(zeros), _flag_rings(ax, tables, column, flagged))
+                     if x)
     if note:
         fig.supxlabel(note, fontsize=7.5, color="0.3")
     ax.set_xlim(0.5, n_max + 0.5)
@@ -84,6 +88,26 @@ def plot_r_values(tables: Mapping[str, pd.DataFrame],
 
 #: Characters of the 7.5-point note under the axes that fit the 7-inch figure's width.
 NOTE_CHARS = 120
+
+
+def _flag_rings(ax, tables: Mapping[str, pd.DataFrame], column: str,
+                flagged: Mapping[str, pd.DataFrame] | None) -> str:
+    """Red rings on the mostly filled first pivots, and their note (one line a dataset)."""
+    import textwrap
+
+    lines = []
+    for name, rows in (flagged or {}).items():
+        if rows is None or len(rows) == 0 or name not in tables:
+            continue
+        df = tables[name].set_index("order")
+        orders = rows["order"].to_numpy(dtype=int)
+        ax.plot(orders, df.loc[orders, column].to_numpy(dtype=float), ls="none", marker="o",
+                ms=9, mfc="none", mec="#c00000", mew=1.4, zorder=5)
+        text = f"{name}: mostly made up by gap filling (red rings): " + "; ".join(
+            f"pivot {int(r.order)} {r.marker} {100 * r.filled_fraction:.0f} % filled"
+            for r in rows.itertuples())
+        lines += textwrap.wrap(text, NOTE_CHARS, subsequent_indent="    ")
+    return "\n".join(lines)
 
 
 def _zeros_note(zeros: list[str]) -> str:

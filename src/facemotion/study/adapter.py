@@ -24,8 +24,11 @@ from pathlib import Path
 
 from facemotion.errors import FacemotionError
 from facemotion.io.atomic import temp_prefix
+from facemotion.study.outputs import check_inside_study
 from facemotion.study.provenance import Provenance
 
+#: the params entry that says where a job's input files lie (not recorded in sidecars)
+FILES_AT = "files_at"
 _WRITE_ERRORS = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO}
 
 
@@ -43,11 +46,15 @@ def provenance_for(sm, extra_inputs=()) -> Provenance:
     """Provenance of a Snakemake job: rule name, its params (the config used), its inputs and
     the outputs it declares."""
     params = {k: v for k, v in sm.params.items()} if hasattr(sm.params, "items") else {}
+    # where the input files lie (a rule's ``files_at`` param: the name the study records for
+    # each file -> its path) is not a setting: sidecars name files by those names
+    files_at = params.pop(FILES_AT, None) or {}
     wildcards = {k: v for k, v in sm.wildcards.items()} if hasattr(sm.wildcards, "items") else {}
     config = {"wildcards": wildcards, "params": params}
     files = [f for f in _flatten(sm.input) if os.path.isfile(f)] + list(extra_inputs)
     return Provenance(step=sm.rule, config=config, inputs=files,
-                      job_outputs=_flatten(getattr(sm, "output", [])))
+                      job_outputs=_flatten(getattr(sm, "output", [])),
+                      names={str(v): str(k) for k, v in files_at.items()})
 
 
 def clean_temporary_files(outputs) -> list[Path]:
@@ -126,6 +133,12 @@ def run_step(sm, main: Callable) -> None:
     # short-lived objects trigger (5-10 % of a figure's CPU), and out of forked workers' pages.
     gc.freeze()
     gc.enable()  # off while a job's script imports its modules (facemotion/__init__.py)
+    if _in_job_process(sm):  # in a study's job, its working directory is the study root
+        try:
+            check_inside_study(_flatten(getattr(sm, "output", [])) + _flatten(sm.log or []))
+        except FacemotionError as exc:
+            print(f"facemotion: {job_name(sm)}: {exc}", file=sys.stderr, flush=True)
+            _end(logging.getLogger("facemotion"), sm, 1)
     log = setup_logging(sm)
     try:
         for p in clean_temporary_files(getattr(sm, "output", [])):

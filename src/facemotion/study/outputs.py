@@ -64,3 +64,38 @@ def figure_files(output, key: str) -> list[str]:
     more = key + MORE
     extra = list(output[more]) if more in output.keys() else []
     return [str(output[key]), *map(str, extra)]
+
+
+def _under(path: str, folder: str) -> bool:
+    return path == folder or path.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def check_inside_study(paths: Iterable[str | os.PathLike], root: str | os.PathLike = ".",
+                       what: str = "output") -> None:
+    """Refuse, before anything is written, a path that would place a file outside the study
+    root: an absolute path elsewhere, ``..`` leading out, an empty name, or a symbolic link
+    inside the study's results folder (``results/<study>/...``) that leads out of it.
+
+    The results folder itself (or ``results/``) may be a link, e.g. to a scratch disk: where
+    the study's results live is the user's choice; a link below it would let one output land
+    anywhere."""
+    from facemotion.errors import InputError
+
+    base = os.path.abspath(root)
+    for p in paths:
+        text = os.fspath(p)
+        full = os.path.normpath(os.path.join(base, text))
+        names = text.replace(os.sep, "/").strip("/").split("/")
+        if any(not name.strip() for name in names):
+            raise InputError(f"{what} path {text!r}: an empty name")
+        if not _under(full, base) or full == base:
+            raise InputError(f"{what} path {text}: outside the study root {base} (a name "
+                             "with '..' or an absolute path); nothing was written")
+        parts = os.path.relpath(full, base).split(os.sep)
+        top = os.path.join(base, *parts[:2]) if parts[0] == "results" and len(parts) > 2 \
+            else base
+        allowed = os.path.realpath(top)
+        if not _under(os.path.realpath(full), allowed):
+            raise InputError(f"{what} path {text}: a symbolic link leads it to "
+                             f"{os.path.realpath(full)}, outside {allowed}; nothing was "
+                             "written")

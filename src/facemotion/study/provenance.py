@@ -144,6 +144,9 @@ class Provenance:
     config: Mapping[str, Any] = field(default_factory=dict)
     inputs: Iterable[str] = ()
     job_outputs: Iterable[str] = ()  # every output the job declares (for the manifest)
+    #: how input files are recorded (a file outside the study by the name the study gives
+    #: it, so that the sidecar is the same wherever the study runs)
+    names: Mapping[str, str] = field(default_factory=dict)
 
     def sidecar(self, schema_id: str, schema_version: str, outputs: Iterable[str]) -> dict:
         return {
@@ -154,8 +157,10 @@ class Provenance:
             "git": git_commit(),
             "step": self.step,
             "config": _jsonable(dict(self.config)),
-            "inputs": [{"path": str(p), "sha256": sha256_file(p, job_input=True)}
-                       for p in sorted(set(map(str, self.inputs))) if os.path.isfile(p)],
+            "inputs": sorted(({"path": self.names.get(p, p),
+                               "sha256": sha256_file(p, job_input=True)}
+                              for p in set(map(str, self.inputs)) if os.path.isfile(p)),
+                             key=lambda e: e["path"]),
             "outputs": [{"path": str(p), "sha256": sha256_file(p)} for p in outputs],
             "job_outputs": sorted(set(map(str, self.job_outputs))),
         }

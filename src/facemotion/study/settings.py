@@ -156,6 +156,10 @@ def sheet_schema(schema_path) -> dict:
     return schema
 
 
+#: The schema's pattern of every name that becomes part of a path (study, dataset, sweep, ...).
+ID_PATTERN = "^[A-Za-z0-9][A-Za-z0-9_.-]*$"
+
+
 def _best_error(data, schema: dict):
     import jsonschema
 
@@ -189,7 +193,12 @@ def validate_config(config: dict, schema_path) -> None:
         if err is None:
             raise InputError(f"settings: {str(exc).strip().splitlines()[0]}") from None
         where = ".".join(str(p) for p in err.absolute_path) or "(top level)"
-        raise InputError(f"setting {where}: {err.message.splitlines()[0][:200]}") from None
+        message = err.message.splitlines()[0][:200]
+        if err.validator == "pattern" and err.validator_value == ID_PATTERN:
+            message = (f"{str(err.instance)[:80]!r} is not a name of letters, digits, '_', '.' "
+                       "and '-' starting with a letter or digit (it becomes part of output "
+                       "paths)")
+        raise InputError(f"setting {where}: {message}") from None
 
 
 def validate_sheet(sheet_path, schema_path) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import glob
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -381,11 +382,15 @@ def resolve_datasets(subjects: dict[str, Subject], datasets_cfg: dict | None,
 
 
 def dataset_params(subjects: dict[str, Subject], datasets: dict[str, Dataset],
-                   dataset: str) -> dict:
+                   dataset: str, names: dict[str, str] | None = None) -> dict:
     """Everything about a dataset that its outputs depend on (the loading rule's params):
-    the sheet's row of its subject and its sentences (1-based, as in the config)."""
+    the sheet's row of its subject and its sentences (1-based, as in the config); takes are
+    named by ``names`` (:func:`recorded_names`) where it has them."""
     ds = datasets[dataset]
     subj = subjects[ds.subject]
+    names = names or {}
+    segments = None if subj.segments is None else [
+        {**s.to_param(), "take": names.get(s.take, s.take)} for s in subj.segments]
     return {
         "dataset": ds.id,
         "label": ds.label,
@@ -400,7 +405,7 @@ def dataset_params(subjects: dict[str, Subject], datasets: dict[str, Dataset],
         "heldout": [i + 1 for i in ds.heldout],
         "sentence_names": subj.sentence_names,
         "subject_prefix": subj.subject_prefix,
-        "segments": None if subj.segments is None else [s.to_param() for s in subj.segments],
+        "segments": segments,
         # only when declared, so that the params of sheets without it stay as they were
         **({"rate": subj.rate} if subj.rate is not None else {}),
     }
@@ -444,3 +449,28 @@ def virtual_talkers(n_talkers: int, design: str, n_sentences: int, heldout_fract
         datasets[sid] = Dataset(sid, sid, sid, list(range(n_sentences - held)),
                                 list(range(n_sentences - held, n_sentences)))
     return subjects, datasets
+
+
+def recorded_name(path: str | Path, root: str | Path, sheet_dir: str | Path,
+                  shared_data: str | Path | None = None) -> str:
+    """How the study records an input file, so that its outputs do not depend on the folder
+    it runs in: ``{shared_data}/...`` under the shared-data folder, a path relative to the
+    study root under it, ``{sheet}/...`` (relative to the subject sheet's folder) under the
+    sheet's folder, else the absolute path (the same wherever the study runs)."""
+    full = Path(os.path.abspath(path))
+    for token, base in (("{shared_data}", shared_data), (None, root), ("{sheet}", sheet_dir)):
+        if base is None:
+            continue
+        try:
+            rel = full.relative_to(os.path.abspath(base))
+        except ValueError:
+            continue
+        return rel.as_posix() if token is None else f"{token}/{rel.as_posix()}"
+    return full.as_posix()
+
+
+def recorded_names(subjects: dict[str, Subject], root: str | Path, sheet_dir: str | Path,
+                   shared_data: str | Path | None = None) -> dict[str, str]:
+    """:func:`recorded_name` of every recording and segmentation file of ``subjects``."""
+    return {f: recorded_name(f, root, sheet_dir, shared_data)
+            for s in subjects.values() for f in [*s.recordings, *s.segment_sources]}

@@ -102,6 +102,13 @@ def rank_lines(rank_summary, selected, n_pivots: int = 5) -> list[str]:
 
     out = [line("dataset", cols, f"first {n_pivots} pivots")]
     out += [line(name, cells, pivots) for name, cells, pivots in table]
+    for name in names:  # pivots mostly made up by gap filling, markers left out for it
+        r = rank_summary[rank_summary["dataset"] == name]
+        for col, what in (("mostly_filled_pivots", "mostly filled first pivots"),
+                          ("left_out_filled", "left out as mostly filled")):
+            text = str(r[col].iloc[0]) if col in r and len(r) else ""
+            if text and text != "nan":
+                out.append(f"  {name}: {what}: {text}")
     return out
 
 
