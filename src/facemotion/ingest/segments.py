@@ -246,10 +246,9 @@ def _praat_tiers(p: Path) -> TextGridTiers:
             tiers.setdefault(str(name), (bool(call(tg, "Is interval tier...", i)), entries))
         return TextGridTiers(call(tg, "Get start time"), call(tg, "Get end time"), tiers,
                              "praat")
-    except parselmouth.PraatError as e:
-        detail = str(e).strip().splitlines()
+    except parselmouth.PraatError as e:  # its quotes may hold the file's bytes: tokens only
         raise InputError(f"{p}: cannot read as a Praat TextGrid (Praat: "
-                         f"{detail[0][:80] if detail else 'no detail'})") from None
+                         f"{exception_detail(e)})") from None
 
 
 def read_textgrid_tier(path, tier: str) -> list[tuple[float, float, str]]:
