@@ -50,43 +50,8 @@ TEXT_KINDS = ["truncate", "delete_line", "insert_line", "duplicate_line", "swap_
 C3D_KINDS = ["truncate", "header_bits", "parameter_bits", "data_bits"]
 VALUE_KINDS = {"value_digit", "data_bits"}
 
-#: Known failures left to the rewrite of the vendor readers (issue 22's area): (format, kind)
-#: -> reason. Each is a real finding; the test says xfail, not pass.
-ISSUE22 = "vendor readers being rewritten (issue 22): "
-KNOWN: dict[tuple[str, str], str] = {
-    ("qualisys_tsv", "header_number"): ISSUE22 + "QTM TSV: a changed FREQUENCY is not checked "
-    "against the data's Time column",
-    ("qualisys_tsv", "insert_field"): ISSUE22 + "QTM TSV: a data line with an extra field is "
-    "read shifted",
-    ("qualisys_tsv", "delete_field"): ISSUE22 + "QTM TSV: a data line with a field less is "
-    "read shifted",
-    ("qualisys_tsv", "swap_lines"): ISSUE22 + "QTM TSV: frames out of order (Frame column) "
-    "are read as they come",
-    ("openface_csv", "delete_field"): ISSUE22 + "OpenFace CSV: a data line with a field less "
-    "is read shifted",
-    ("textgrid", "truncate"): ISSUE22 + "TextGrid (praatio): a file cut at an interval's end "
-    "reads as fewer intervals (intervals: size is not checked)",
-    ("textgrid", "duplicate_line"): ISSUE22 + "TextGrid (praatio): a repeated line reads as "
-    "other intervals",
-    ("textgrid", "insert_line"): ISSUE22 + "TextGrid (praatio): an inserted line reads as "
-    "other intervals",
-    ("textgrid", "delete_line"): ISSUE22 + "TextGrid (praatio): a deleted line reads as other "
-    "intervals",
-    ("textgrid", "swap_lines"): ISSUE22 + "TextGrid (praatio): swapped lines read as other "
-    "intervals",
-    ("textgrid", "delete_field"): ISSUE22 + "TextGrid (praatio): 'intervals [3]:' cut to "
-    "'intervals' still reads",
-    ("textgrid", "insert_field"): ISSUE22 + "TextGrid (praatio): a repeated word inside a "
-    "quoted text reads as another text",
-    ("openface_csv", "truncate"): ISSUE22 + "OpenFace CSV: a file cut inside a line reads the "
-    "cut line",
-    ("openface_csv", "delete_line"): ISSUE22 + "OpenFace CSV: a missing frame (frame column) "
-    "is not reported",
-    ("openface_csv", "insert_field"): ISSUE22 + "OpenFace CSV: a repeated header field reads "
-    "as other columns",
-    ("qualisys_tsv", "truncate"): ISSUE22 + "QTM TSV: fewer frames than NO_OF_FRAMES are "
-    "read without a word",
-}
+#: Known failures, (format, kind) -> reason, each marked xfail (not pass) until it is fixed.
+KNOWN: dict[tuple[str, str], str] = {}   # none left: every finding so far is fixed
 
 
 #: The wide CSV format has no shared file: it is fuzzed on a shared take written as CSV.

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -179,12 +180,39 @@ def read_textgrid(path) -> TextGridTiers:
     except OSError as e:
         raise InputError(f"{p}: cannot read the TextGrid ({type(e).__name__})") from None
     text = None if raw.startswith(b"ooBinaryFile") else textgrid_text(raw)
+    if text is not None and '"TextGrid"' in _short_tokens(text)[:8] and \
+            "chronological" not in text.splitlines()[0]:
+        long_format = re.search(r"^\s*xmin\s*=", text, re.M) is not None
+        try:
+            _check_long_format(text) if long_format else _check_short_format(text)
+        except ValueError as e:
+            raise InputError(f"{p}: not a consistent TextGrid ({e})") from None
     if text is not None:
         try:
             return _praatio_tiers(text)
         except Exception:  # praatio raises several kinds on what it does not parse
             pass  # Praat's own parser reads it or says why not
-    return _praat_tiers(p)
+    tg = _praat_tiers(p)
+    _check_structure(tg, None if text is None else _declared_sizes(text), p)
+    return tg
+
+
+def _check_structure(tg: TextGridTiers, sizes: list[int] | None, p: Path) -> None:
+    """Praat reads the long format by its numbers and texts in order, so a repeated or
+    inserted line can shift what follows into other intervals: the declared sizes and the
+    tiling of the interval tiers must still hold."""
+    for i, (interval, entries) in enumerate(tg.tiers.values()):
+        try:
+            if sizes is not None and (i >= len(sizes) or sizes[i] != len(entries)):
+                raise ValueError(f"tier {i + 1} declares "
+                                 f"{sizes[i] if i < len(sizes) else 'no'} entries and holds "
+                                 f"{len(entries)}")
+            if interval and entries:  # a tier's own domain may lie inside the grid's
+                _check_tiling(entries, entries[0][0], entries[-1][1], i + 1)
+                if entries[0][0] < tg.xmin or entries[-1][1] > tg.xmax:
+                    raise ValueError(f"interval tier {i + 1} runs outside the TextGrid")
+        except ValueError as e:
+            raise InputError(f"{p}: not a consistent TextGrid ({e})") from None
 
 
 def textgrid_text(raw: bytes) -> str | None:
@@ -214,12 +242,115 @@ def _praatio_tiers(text: str) -> TextGridTiers:
 
     tg = textgrid_io.parseTextgridStr(text, includeEmptyIntervals=True)
     tiers = {}
-    for t in tg["tiers"]:
+    sizes = _declared_sizes(text)
+    for i, t in enumerate(tg["tiers"]):
         interval = t["class"] == "IntervalTier"
         entries = [(float(e[0]), float(e[1]) if interval else float(e[0]), str(e[-1]))
                    for e in t["entries"]]
+        if sizes is not None and (i >= len(sizes) or sizes[i] != len(entries)):
+            raise ValueError(f"tier {i + 1} declares {sizes[i] if i < len(sizes) else 'no'} "
+                             f"entries and holds {len(entries)}")
+        if interval:
+            _check_tiling(entries, float(t["xmin"]), float(t["xmax"]), i + 1)
         tiers.setdefault(str(t["name"]), (interval, entries))
     return TextGridTiers(float(tg["xmin"]), float(tg["xmax"]), tiers, "praatio")
+
+
+_LONG_KEYS = ("File type", "Object class", "xmin", "xmax", "tiers?", "size", "item [",
+              "item []", "class", "name", "intervals", "points", "number", "mark", "text")
+
+
+def _check_long_format(text: str) -> None:
+    """The long text format writes one ``key = value`` (or ``item [i]:``) per line and each
+    interval's xmin, xmax and text once: a line that is none of these, or an interval whose
+    keys are repeated or missing, is a damaged file (Praat and praatio would read the values
+    around it as other intervals)."""
+    inside, block = False, None
+    for n, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if inside:  # a text that runs over several lines
+            inside = stripped.count('"') % 2 == 0
+            continue
+        if '"' not in stripped:  # Praat's comments run from '!' to the line's end
+            stripped = stripped.split("!", 1)[0].strip()
+        if not stripped:
+            continue
+        if not stripped.startswith(_LONG_KEYS):
+            raise ValueError(f"line {n}: not a line of the long text format")
+        inside = stripped.count('"') % 2 == 1
+        key = re.split(r"[\s=\[:]", stripped, maxsplit=1)[0]
+        if key in ("intervals", "points") and "[" in stripped:
+            block = []
+        elif block is not None and key in ("xmin", "xmax", "text", "number", "mark"):
+            if key in block:
+                raise ValueError(f"line {n}: {key} repeated in one interval or point")
+            block.append(key)
+        elif key == "item":
+            block = None
+
+
+def _short_tokens(text: str) -> list[str]:
+    """The short text format's tokens: quoted texts (which may hold doubled quotes and line
+    ends) and bare words or numbers, without '!' comments."""
+    return re.findall(r'"(?:[^"]|"")*"|[^\s"!]+|!.*', text)
+
+
+def _check_short_format(text: str) -> None:
+    """The short text format is a fixed sequence of numbers and quoted texts: per interval
+    tier its class, name, xmin, xmax and count, then per interval two numbers and a text (a
+    point tier: a number and a text). A line inserted, repeated or lost shifts the sequence;
+    Praat and praatio may still read it, as other intervals."""
+    toks = [t for t in _short_tokens(text) if not t.startswith("!")]
+
+    def num(i):
+        try:
+            float(toks[i])
+        except (IndexError, ValueError):
+            raise ValueError(f"token {i + 1}: expected a number") from None
+
+    def txt(i):
+        if i >= len(toks) or not toks[i].startswith('"'):
+            raise ValueError(f"token {i + 1}: expected a quoted text")
+
+    # the header: File type = "ooTextFile" Object class = "TextGrid"
+    if '"TextGrid"' not in toks[:8]:
+        raise ValueError("no 'Object class = \"TextGrid\"' header")
+    i = toks.index('"TextGrid"') + 1
+    num(i), num(i + 1)
+    if toks[i + 2] != "<exists>":
+        raise ValueError(f"token {i + 3}: expected <exists>")
+    num(i + 3)
+    n_tiers, i = int(float(toks[i + 3])), i + 4
+    for _ in range(n_tiers):
+        txt(i), txt(i + 1), num(i + 2), num(i + 3), num(i + 4)
+        kind, n, i = toks[i], int(float(toks[i + 4])), i + 5
+        width = 3 if kind == '"IntervalTier"' else 2
+        for _ in range(n):
+            for j in range(width - 1):
+                num(i + j)
+            txt(i + width - 1)
+            i += width
+    if i != len(toks):
+        raise ValueError(f"{len(toks) - i} token(s) after the last tier")
+
+
+def _declared_sizes(text: str) -> list[int] | None:
+    """The long text format's ``intervals: size = N`` / ``points: size = N`` of each tier, in
+    order (None for the short format, which declares them as bare numbers)."""
+    found = re.findall(r"^\s*(?:intervals|points):\s*size\s*=\s*(\d+)", text, re.M)
+    return [int(n) for n in found] if "item [" in text else None
+
+
+def _check_tiling(entries, xmin: float, xmax: float, tier: int) -> None:
+    """An interval tier tiles its time domain: each interval starts where the one before it
+    ends, the first at the tier's xmin, the last ending at its xmax (Praat writes it so); a
+    file cut or edited by hand breaks the chain."""
+    tol = 1e-9 * max(1.0, abs(xmax))
+    edges = [xmin] + [e for _, e, _ in entries]
+    starts = [s for s, _, _ in entries]
+    if not entries or any(abs(a - b) > tol for a, b in zip(starts, edges, strict=False)) \
+            or abs(edges[-1] - xmax) > tol or any(e <= s for s, e, _ in entries):
+        raise ValueError(f"interval tier {tier}: its intervals do not tile {xmin:g}-{xmax:g} s")
 
 
 def _praat_tiers(p: Path) -> TextGridTiers:
