@@ -55,9 +55,9 @@ def study(tmp_path_factory):
         "subject\trecordings\tformat\thead_markers\texclude_markers\tcopy_markers\n"
         f"lab\ttakes/take*.c3d\tc3d\t{HEAD}\t{HEAD}\t13=11\n")
     runs = [tmp_path_factory.mktemp("studyA"), tmp_path_factory.mktemp("elsewhere") / "B"]
-    for work in runs:
+    for work in runs:  # the whole study, every output
         work.mkdir(exist_ok=True)
-        snakemake(work, *TARGETS, sheet=sheet)
+        snakemake(work, sheet=sheet)
     return data, sheet, runs
 
 
@@ -109,14 +109,19 @@ def test_a_replaced_take_reruns_loading_and_its_dependants(study, replace, tmp_p
 
 
 def test_same_study_in_two_folders_gives_the_same_bytes(study):
+    """Every output of the whole study (tables, figures, the animation, the summary, the
+    manifest) and every sidecar, not only the dataset's."""
     _, _, (a, b) = study
-    base_a, base_b = a / "results" / "smoke" / "lab", b / "results" / "smoke" / "lab"
+    base_a, base_b = a / "results" / "smoke", b / "results" / "smoke"
     files = sorted(p.relative_to(base_a) for p in base_a.rglob("*")
-                   if p.is_file() and not {"logs", "benchmarks"} & set(p.parts))
-    assert any(f.name == "sentences.meta.json" for f in files)
+                   if p.is_file() and not {"logs", "benchmarks", ".cache"} & set(p.parts))
+    assert {"lab/data/sentences.meta.json", "manifest.tsv", "summary.txt",
+            "tables/rank_summary.tsv"} <= {str(f) for f in files}
+    assert sorted(p.relative_to(base_b) for p in base_b.rglob("*") if p.is_file() and not
+                  {"logs", "benchmarks", ".cache"} & set(p.parts)) == files
     differ = [str(f) for f in files if not filecmp.cmp(base_a / f, base_b / f, shallow=False)]
     assert differ == []
-    sentences = (base_a / "data" / "sentences.tsv").read_text()
+    sentences = (base_a / "lab" / "data" / "sentences.tsv").read_text()
     assert "{sheet}/takes/take01.c3d" in sentences and str(a) not in sentences
 
 
