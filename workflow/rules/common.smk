@@ -222,6 +222,11 @@ VIRTUAL = [
     if SUBJECTS[s].simulate
 ]
 LIP_SUBJECTS = list(config["lips"]["subjects"])  # after the skipped ones are dropped
+# The marker-set design needs at least two sentences (one to train, one to measure the
+# held-out error); a dataset of one sentence (a single GRID clip) has none.
+DESIGN_DATASETS = {
+    d: ds for d, ds in DATASETS.items() if len(ds.train) + len(ds.heldout) >= 2
+}
 
 
 def _choice(names):
@@ -464,14 +469,17 @@ def all_outputs():
         out += [f"{base}/qr/r_values.tsv", f"{base}/qr/rank.tsv"]
         out += [f"{base}/qr/redundancy.tsv", f"{base}/qr/stability.tsv"]
         out += [f"{base}/qr/optimality.tsv"]
-        out += [f"{base}/design/markers.tsv", f"{base}/design/marker_set_plot.png"]
         out += [f"{base}/fit/coefficients_k{k}.tsv" for k in config["fit"]["k"]]
+    for d in DESIGN_DATASETS:
+        base = f"<results>/{d}"
+        out += [f"{base}/design/markers.tsv", f"{base}/design/marker_set_plot.png"]
     for d in EVAL_DATASETS:
         out += [f"<results>/{d}/eval/error_curve.tsv"]
         if config["animation"]["enabled"]:
             out += [f"<results>/{d}/anim/heldout_still.png"]
     out += ["<results>/tables/selected_markers.tsv", "<results>/figures/r_values.png"]
-    out += ["<results>/figures/face_3d.html"]
+    if DESIGN_DATASETS:
+        out += ["<results>/figures/face_3d.html"]
     if EVAL_DATASETS:
         out += ["<results>/figures/error_curves.png"]
     for ls in LIP_SUBJECTS:

@@ -40,14 +40,16 @@ rule design_markers:
 
 rule render_face_page:
     input:
-        npz=per_dataset("<results>/{dataset}/data/displacements.npz", DATASETS),
+        npz=per_dataset("<results>/{dataset}/data/displacements.npz", DESIGN_DATASETS),
         coefficients=per_dataset(
             f"<results>/{{dataset}}/fit/coefficients_k{config['fit']['k'][0]}.tsv",
-            DATASETS,
+            DESIGN_DATASETS,
         ),
-        r_values=per_dataset("<results>/{dataset}/qr/r_values.tsv", DATASETS),
-        markers=per_dataset("<results>/{dataset}/design/markers.tsv", DATASETS),
-        marker_set=per_dataset("<results>/{dataset}/design/marker_set.json", DATASETS),
+        r_values=per_dataset("<results>/{dataset}/qr/r_values.tsv", DESIGN_DATASETS),
+        markers=per_dataset("<results>/{dataset}/design/markers.tsv", DESIGN_DATASETS),
+        marker_set=per_dataset(
+            "<results>/{dataset}/design/marker_set.json", DESIGN_DATASETS
+        ),
     output:
         page=report(
             "<results>/figures/face_3d.html",
@@ -65,7 +67,7 @@ rule render_face_page:
         runtime=5,
     params:
         study=STUDY,
-        labels=[DATASETS[d].label for d in DATASETS],
+        labels=[DATASETS[d].label for d in DESIGN_DATASETS],
     message:
         "render_face_page: the study's interactive 3-D page, {output.page}"
     script:
