@@ -247,20 +247,7 @@ def parametric_lip_mesh(n_around: int = 32, n_rings: int = 5, strip_width: int =
     end of this strip" and Sec. 4.1 counts 600 columns, which is 4 nodes (12 DOF) of 204.
     Our reading: 4 nodes at the far end of the strip are grounded, which gives the 600.
     """
-    if n_around < 8 or n_around % 4:
-        raise InputError(f"parametric_lip_mesh: n_around must be a multiple of 4 and >= 8, "
-                         f"got {n_around}")
-    if n_rings < 2:
-        raise InputError(f"parametric_lip_mesh: n_rings must be >= 2, got {n_rings}")
-    if strip_rows < 1:
-        raise InputError(f"parametric_lip_mesh: strip_rows must be >= 1, got {strip_rows}")
-    if strip_width < 3 or strip_width % 2 == 0 or strip_width > n_around // 2 + 1:
-        raise InputError(f"parametric_lip_mesh: strip_width must be odd, >= 3 and at most "
-                         f"{n_around // 2 + 1} (the upper lip), got {strip_width}")
-    if not 2 <= grounded <= strip_width or (grounded % 2 and grounded != strip_width):
-        raise InputError(f"parametric_lip_mesh: grounded must be even (mirror-symmetric), "
-                         f">= 2 and at most strip_width ({strip_width}), or strip_width "
-                         f"itself, got {grounded}")
+    _check_mesh_settings(n_around, n_rings, strip_width, strip_rows, grounded)
     theta = 2 * np.pi * np.arange(n_around) / n_around
     c, s = np.cos(theta), np.sin(theta)
     outer = np.column_stack([width / 2 * c, np.where(s >= 0, upper_height, lower_height) * s])
@@ -312,6 +299,25 @@ def parametric_lip_mesh(n_around: int = 32, n_rings: int = 5, strip_width: int =
     fixed = np.where(role == "fixed")[0]
     return LipMesh(nodes, np.array(tris), fixed, role, part,
                    np.array(kinds, dtype=object), labels, name="parametric lip mesh")
+
+
+def _check_mesh_settings(n_around: int, n_rings: int, strip_width: int, strip_rows: int,
+                         grounded: int) -> None:
+    """The counts ``parametric_lip_mesh`` can build: one line naming the one at fault."""
+    if n_around < 8 or n_around % 4:
+        raise InputError(f"parametric_lip_mesh: n_around must be a multiple of 4 and >= 8, "
+                         f"got {n_around}")
+    if n_rings < 2:
+        raise InputError(f"parametric_lip_mesh: n_rings must be >= 2, got {n_rings}")
+    if strip_rows < 1:
+        raise InputError(f"parametric_lip_mesh: strip_rows must be >= 1, got {strip_rows}")
+    if strip_width < 3 or strip_width % 2 == 0 or strip_width > n_around // 2 + 1:
+        raise InputError(f"parametric_lip_mesh: strip_width must be odd, >= 3 and at most "
+                         f"{n_around // 2 + 1} (the upper lip), got {strip_width}")
+    if not 2 <= grounded <= strip_width or (grounded % 2 and grounded != strip_width):
+        raise InputError(f"parametric_lip_mesh: grounded must be even (mirror-symmetric), "
+                         f">= 2 and at most strip_width ({strip_width}), or strip_width "
+                         f"itself, got {grounded}")
 
 
 def _grounded_columns(width: int, grounded: int) -> np.ndarray:
