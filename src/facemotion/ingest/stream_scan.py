@@ -39,6 +39,7 @@ from facemotion.ingest.validation import (
     check_rate,
     check_spread_value,
     check_take_length,
+    outlier_notes,
     units_conflict,
 )
 from facemotion.io.recording import finite_samples
@@ -216,28 +217,6 @@ def _fast_outliers(columns: np.ndarray, cut: np.ndarray, far: np.ndarray, missin
     return fast, top
 
 
-def _notes(out, far, fast, far_max, top, labels, rate, limits) -> list[str]:
-    """The outlier notes, word for word those of
-    :func:`~facemotion.ingest.validation.find_outliers`."""
-    from facemotion.ingest.gaps import runs
-
-    notes = []
-    for j in np.flatnonzero(out.any(axis=0)):
-        first = int(np.flatnonzero(out[:, j])[0])
-        why = []
-        if far[:, j].any():
-            why.append(f"{int(far[:, j].sum())} at up to {far_max[j]:.3g} mm from the face "
-                       f"centre (limit {limits.max_distance_mm:g} mm, "
-                       f"{limits.name('max_distance_mm')})")
-        if fast[:, j].any():
-            why.append(f"{int(fast[:, j].sum())} reached at up to {top[j]:.3g} mm/s "
-                       f"(limit {limits.max_speed_mm_s:g} mm/s, {limits.name('max_speed_mm_s')})")
-        notes.append(f"marker {labels[j]!r}: {int(out[:, j].sum())} outlier sample(s) in "
-                     f"{len(runs(out[:, j]))} run(s), first at frame {first + 1} "
-                     f"(t = {first / rate:.3f} s): {'; '.join(why)}")
-    return notes
-
-
 def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
               units: str | None = None, subject_prefix: str | None = None,
               head_markers: list[str] = (), role: str = "",
@@ -280,7 +259,7 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
     if st.any_ok and not st.moved:
         raise InputError(f"{where}: no marker moves in this take (every sample equals the "
                          "marker's first): a frozen or placeholder take")
-    notes = _notes(outliers, far, fast, st.far_max, top, used, src.rate, limits)
+    notes = outlier_notes(outliers, far, fast, st.far_max, top, used, src.rate, limits)
     measured = int((~missing).sum())
     if measured and outliers.sum() > MAX_OUTLIER_FRACTION * measured:
         raise InputError(f"{where}: {outliers.sum()} of the take's {measured} measured samples "

@@ -161,7 +161,7 @@ def same_shape(scans: list[TakeScan], limits: Limits, budget: Budget,
                max_frames: int = 200) -> list[float]:
     """:func:`facemotion.ingest.validation.check_same_shape` with the first take's median
     face taken exactly, column batch by column batch from its scratch file."""
-    from facemotion.ingest.validation import _fit_rms
+    from facemotion.ingest.validation import _fit_rms, shape_verdict
 
     if len(scans) < 2:
         return [0.0]
@@ -188,15 +188,7 @@ def same_shape(scans: list[TakeScan], limits: Limits, budget: Budget,
         frames = frames[np.linspace(0, frames.size - 1, min(frames.size, max_frames)).astype(int)]
         X = np.stack([s.points(f, f + 1)[0][cols] for f in frames])
         proper, mirror = (float(np.min(r)) for r in _fit_rms(X, ref[cols]))
-        if mirror < 0.5 * proper:
-            raise InputError(f"{s.source}: the face is a mirror image of {s0.source}'s "
-                             f"(it fits it to {mirror:.3g} mm RMS with a reflection, "
-                             f"{proper:.3g} mm without): two axes swapped or one negated?")
-        if proper > limits.max_shape_rms_mm:
-            raise InputError(
-                f"{s.source}: the face differs from {s0.source}'s by {proper:.3g} mm RMS at "
-                f"best after a rigid fit (limit {limits.max_shape_rms_mm:g} mm, "
-                f"{limits.name('max_shape_rms_mm')}): markers relabelled, or another face?")
+        shape_verdict(proper, mirror, s.source, s0.source, limits)
         out.append(proper)
     return out
 

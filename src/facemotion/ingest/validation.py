@@ -290,15 +290,7 @@ def check_same_shape(recs: list[Recording], limits: Limits, max_frames: int = 20
         frames = frames[np.linspace(0, frames.size - 1, min(frames.size, max_frames)).astype(int)]
         X = rec.points[frames][:, cols]  # (this layout: the sums, so the RMS, as before)
         proper, mirror = (float(np.min(r)) for r in _fit_rms(X, ref[cols]))
-        if mirror < 0.5 * proper:
-            raise InputError(f"{where}: the face is a mirror image of {recs[0].source}'s "
-                             f"(it fits it to {mirror:.3g} mm RMS with a reflection, "
-                             f"{proper:.3g} mm without): two axes swapped or one negated?")
-        if proper > limits.max_shape_rms_mm:
-            raise InputError(
-                f"{where}: the face differs from {recs[0].source}'s by {proper:.3g} mm RMS at "
-                f"best after a rigid fit (limit {limits.max_shape_rms_mm:g} mm, "
-                f"{limits.name('max_shape_rms_mm')}): markers relabelled, or another face?")
+        shape_verdict(proper, mirror, where, recs[0].source, limits)
         out.append(proper)
     return out
 
@@ -404,21 +396,47 @@ def find_outliers(rec: Recording, limits: Limits,
                         / np.diff(idx)
                 top_speed[j] = float(np.nanmax(v))
     out |= fast
+    notes = outlier_notes(out, far, fast, dist.max(axis=0), top_speed, rec.labels, rec.rate,
+                          limits)
+    return out, notes
+
+
+def outlier_notes(out, far, fast, far_max, top_speed, labels, rate, limits) -> list[str]:
+    """One note per marker with outliers (frames x markers masks ``out``, ``far``, ``fast``):
+    how many, in how many runs, the first, and why (the largest distance from the face centre
+    ``far_max`` and speed ``top_speed`` per marker)."""
+
     notes = []
     for j in np.flatnonzero(out.any(axis=0)):
         first = int(np.flatnonzero(out[:, j])[0])
         why = []
         if far[:, j].any():
-            why.append(f"{int(far[:, j].sum())} at up to {np.max(dist[:, j]):.3g} mm from the face "
+            why.append(f"{int(far[:, j].sum())} at up to {far_max[j]:.3g} mm from the face "
                        f"centre (limit {limits.max_distance_mm:g} mm, "
                        f"{limits.name('max_distance_mm')})")
         if fast[:, j].any():
             why.append(f"{int(fast[:, j].sum())} reached at up to {top_speed[j]:.3g} mm/s "
                        f"(limit {limits.max_speed_mm_s:g} mm/s, {limits.name('max_speed_mm_s')})")
-        notes.append(f"marker {rec.labels[j]!r}: {int(out[:, j].sum())} outlier sample(s) in "
+        notes.append(f"marker {labels[j]!r}: {int(out[:, j].sum())} outlier sample(s) in "
                      f"{len(runs(out[:, j]))} run(s), first at frame {first + 1} "
-                     f"(t = {first / rec.rate:.3f} s): {'; '.join(why)}")
-    return out, notes
+                     f"(t = {first / rate:.3f} s): {'; '.join(why)}")
+    return notes
+
+
+def shape_verdict(proper: float, mirror: float, where: str, first: str,
+                  limits: Limits) -> None:
+    """A take's face against the first take's (``first``), by the RMS of the best rigid fit
+    without (``proper``) and with (``mirror``) a reflection: a mirror image, or a face too
+    different, is an error."""
+    if mirror < 0.5 * proper:
+        raise InputError(f"{where}: the face is a mirror image of {first}'s "
+                         f"(it fits it to {mirror:.3g} mm RMS with a reflection, "
+                         f"{proper:.3g} mm without): two axes swapped or one negated?")
+    if proper > limits.max_shape_rms_mm:
+        raise InputError(
+            f"{where}: the face differs from {first}'s by {proper:.3g} mm RMS at "
+            f"best after a rigid fit (limit {limits.max_shape_rms_mm:g} mm, "
+            f"{limits.name('max_shape_rms_mm')}): markers relabelled, or another face?")
 
 
 def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,

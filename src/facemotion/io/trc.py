@@ -134,6 +134,23 @@ def trc_frame_count(path, units: str | None = None) -> int:
     return _trc_header(p, lines, units)[1]
 
 
+def parse_trc_rows(p, numbers, rows: list[list[str]], ncol: int) -> np.ndarray:
+    """Data lines split into fields (``numbers``: their line numbers) as a (lines x ncol)
+    float array: the field counts checked (:func:`check_trc_fields`), empty fields NaN, and
+    a field that is not a number named by its line and field."""
+    check_trc_fields(p, numbers, np.array([len(r) for r in rows]), ncol,
+                     [any(f.strip() for f in r[ncol:]) for r in rows])
+    arr = np.array([r[:ncol] for r in rows], dtype=object)
+    arr[arr == ""] = "nan"
+    try:
+        return np.char.strip(arr.astype(str)).astype(float)
+    except ValueError:
+        bad = next((numbers[i], j, v) for i, r in enumerate(rows) for j, v in enumerate(r)
+                   if v.strip() and not is_float(v))
+        raise InputError(f"{p}: non-numeric value {token(bad[2])} in line {bad[0]} "
+                         f"field {bad[1] + 1}") from None
+
+
 def read_trc(path, units: str | None = None) -> Recording:
     """Read a TRC file (OpenSim / Motion Analysis text format); empty fields are missing.
 
@@ -173,18 +190,7 @@ def read_trc(path, units: str | None = None) -> Recording:
                          f"{len(rows)} data lines")
     if not rows:
         raise InputError(f"{p}: TRC file has no frames")
-    counts = np.array([len(r) for r in rows])
-    check_trc_fields(p, numbers, counts, ncol,
-                     [any(f.strip() for f in r[ncol:]) for r in rows])
-    arr = np.array([r[:ncol] for r in rows], dtype=object)
-    arr[arr == ""] = "nan"
-    try:
-        values = np.char.strip(arr.astype(str)).astype(float)
-    except ValueError:
-        bad = next((numbers[i], j, v) for i, r in enumerate(rows) for j, v in enumerate(r)
-                   if v.strip() and not is_float(v))
-        raise InputError(f"{p}: non-numeric value {token(bad[2])} in line {bad[0]} "
-                         f"field {bad[1] + 1}") from None
+    values = parse_trc_rows(p, numbers, rows, ncol)
     check_trc_time(p, numbers, values[:, 0], values[:, 1], rate)
     xyz = values[:, 2:].reshape(n_frames, n_markers, 3) * scale
     return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)

@@ -21,16 +21,15 @@ from pathlib import Path
 
 import numpy as np
 
-from facemotion.errors import InputError, token
+from facemotion.errors import InputError
 from facemotion.io.base import (
     _Irregular,
     _line_fields,
     _parse_chunk,
     check_readable,
-    is_float,
     split_tab_line,
 )
-from facemotion.io.trc import _trc_header, check_trc_fields
+from facemotion.io.trc import _trc_header, parse_trc_rows
 
 #: Text per block (about 5,000 frames of 468 markers); the caller's memory bound sets its own.
 BLOCK_BYTES = 32 * 2**20
@@ -125,18 +124,7 @@ class TrcBlocks:
                 numbers.append(i)
         if not rows:
             return np.empty((0, self.ncol)), np.zeros(0, dtype=np.int64), len(lines)
-        ncol = self.ncol
-        check_trc_fields(self.path, numbers, [len(r) for r in rows], ncol,
-                         [any(f.strip() for f in r[ncol:]) for r in rows])
-        arr = np.array([r[:ncol] for r in rows], dtype=object)
-        arr[arr == ""] = "nan"
-        try:
-            values = np.char.strip(arr.astype(str)).astype(float)
-        except ValueError:
-            bad = next((numbers[i], j, v) for i, r in enumerate(rows) for j, v in enumerate(r)
-                       if v.strip() and not is_float(v))
-            raise InputError(f"{self.path}: non-numeric value {token(bad[2])} in line "
-                             f"{bad[0]} field {bad[1] + 1}") from None
+        values = parse_trc_rows(self.path, numbers, rows, self.ncol)
         return values, np.asarray(numbers), len(lines)
 
     def _check_time(self, numbers, frame_numbers, times, c: _Carry) -> None:
