@@ -182,6 +182,7 @@ WORKFLOW_ONLY = {
     "study", "subjects", "shared_data", "default_datasets", "report_title",
     "qr.route_check", "qr.top_n", "qr.table_orders", "qr.max_filled_fraction",
     "fit.k", "eval.trajectory_marker", "eval.trajectory_sentence", "eval.trajectory_k",
+    "eval.consensus",
     "animation.enabled", "animation.k", "animation.sentences", "animation.fps",
     "animation.format",
     # run_lip_model's defaults hold out the last 10 frames of however many there are; the

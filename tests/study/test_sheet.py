@@ -107,6 +107,27 @@ def test_copy_markers_column(tmp_path):
         read_subject_sheet(sheet)
 
 
+def test_label_map_column_is_read_relative_to_the_sheet_and_checked(tmp_path):
+    header = HEADER.rstrip("\n") + "\tsimulate\tlabel_map\n"
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps" / "S1.tsv").write_text("label\tcommon\nlipL\tcorner_left\n")
+    sheet = write_sheet(tmp_path, ["S1\t\tc3d\tH1,H2,H3\t\tS1\tmaps/S1.tsv",
+                                   "S2a\t\tc3d\tH1,H2,H3\t\tS2a\t"], header=header)
+    subjects = read_subject_sheet(sheet)
+    assert subjects["S1"].label_map.common == {"lipL": "corner_left"}
+    assert subjects["S2a"].label_map is None
+    (tmp_path / "maps" / "S1.tsv").write_text("label\tcommon\nlipL\tc\nlipR\tc\n")
+    with pytest.raises(InputError) as e:
+        read_subject_sheet(sheet)
+    assert str(e.value) == (f"subject sheet {sheet}, row 2 (subject 'S1'): label map "
+                            f"{tmp_path / 'maps' / 'S1.tsv'}, line 3: labels 'lipL' and "
+                            "'lipR' are both mapped to 'c'")
+    (tmp_path / "maps" / "S1.tsv").unlink()
+    with pytest.raises(FileNotFoundError, match=r"row 2 \(subject 'S1'\): label map .*S1.tsv: "
+                                                "file not found"):
+        read_subject_sheet(sheet)
+
+
 def test_s1_design_copies_11_into_13_by_default(tmp_path):
     header = HEADER.rstrip("\n") + "\tsimulate\n"
     sheet = write_sheet(tmp_path, ["S1\t\tc3d\tH1,H2,H3\t\tS1", "S2a\t\tc3d\tH1,H2,H3\t\tS2a"],

@@ -41,6 +41,8 @@ from facemotion.study.settings import (
 )
 from facemotion.study.fingerprint import FingerprintCache, fingerprint
 from facemotion.study.sheet import (
+    consensus_datasets,
+    consensus_params,
     dataset_params,
     read_subject_sheet,
     recorded_names,
@@ -296,6 +298,10 @@ with exit_on_error():
         config,
         {ls: _lip_frames(ls, spec) for ls, spec in config["lips"]["subjects"].items()},
     )
+    # the cross-subject consensus: subject -> the dataset it contributes
+    CONSENSUS = consensus_datasets(
+        SUBJECTS, DESIGN_DATASETS, config["eval"]["consensus"], _labels
+    )
 
 # Datasets whose labels are Lucero & Munhall's (Table I): the comparison reads their outputs.
 COMPARISON_DATASETS = {ds.label: d for d, ds in DATASETS.items() if ds.label in TABLE_I}
@@ -480,6 +486,8 @@ def all_outputs():
     out += ["<results>/tables/selected_markers.tsv", "<results>/figures/r_values.png"]
     if DESIGN_DATASETS:
         out += ["<results>/figures/face_3d.html"]
+    if CONSENSUS:
+        out += ["<results>/design/consensus.tsv"]
     if EVAL_DATASETS:
         out += ["<results>/figures/error_curves.png"]
     for ls in LIP_SUBJECTS:

@@ -72,3 +72,45 @@ rule render_face_page:
         "render_face_page: the study's interactive 3-D page, {output.page}"
     script:
         "../../scripts/render_face_page.py"
+
+
+rule design_consensus:
+    input:
+        npz=lambda w: per_dataset(
+            "<results>/{dataset}/data/displacements.npz", CONSENSUS.values()
+        ),
+        marker_sets=lambda w: per_dataset(
+            "<results>/{dataset}/design/marker_set.json", CONSENSUS.values()
+        ),
+    output:
+        **table("table", "<results>/design/consensus.tsv"),
+        **table("subjects", "<results>/design/consensus_subjects.tsv"),
+        **artifact("marker_set", "<results>/design/consensus_marker_set.json"),
+        **figure(
+            "png",
+            "<results>/design/consensus_plot",
+            caption="consensus",
+            category="7. Marker-set design",
+            subcategory="consensus",
+        ),
+    log:
+        "<results>/logs/design_consensus.log",
+    benchmark:
+        "<results>/benchmarks/design_consensus.tsv"
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    params:
+        subjects=lambda w: consensus_params(
+            SUBJECTS, CONSENSUS, Path.cwd(), SHEET.parent, SHARED_DATA
+        ),
+        target_mm=config["eval"]["target_error_mm"],
+        resamples=config["eval"]["interval_resamples"],
+        level=config["eval"]["interval_level"],
+    message:
+        "design_consensus: one marker set for the study's subjects together"
+    script:
+        "../../scripts/design_consensus.py"

@@ -74,8 +74,8 @@ def _pooled(paths, subjects, label_map, head, drop, fmt, progress, options):
     """Each subject's takes loaded under its own labels, renamed to the common ones, and
     stacked on the markers every subject has: (Displacements, groups, first subject's head
     markers and markers in its own names, markers left out)."""
-    from facemotion.ingest.displacements import Displacements
     from facemotion.ingest.loading import load
+    from facemotion.regions.consensus import pool_subjects
 
     if subjects is None or len(subjects) != len(paths):
         raise InputError("label map: needs each take's subject (subjects=, one per take)")
@@ -89,25 +89,8 @@ def _pooled(paths, subjects, label_map, head, drop, fmt, progress, options):
                      h + [back.get(m, m) for m in drop])), progress=progress,
                  **options).displacements
         parts.append((sub, d, [own.get(m, m) for m in d.labels], h))
-    common = [m for m in parts[0][2] if all(m in p[2] for p in parts[1:])]
-    if len(common) < 2:
-        raise InputError(f"label map: the subjects share {len(common)} marker name(s); map "
-                         "their labels to common names")
-    rates = {p[1].rate for p in parts}
-    if len(rates) > 1:
-        raise InputError(f"subjects: different frame rates {sorted(rates)} Hz; resample first")
-    cols = [[p[2].index(m) for m in common] for p in parts]
-    offsets = np.cumsum([0] + [len(p[1].sentences) for p in parts])
-    d = Displacements(
-        np.vstack([p[1].A[:, c] for p, c in zip(parts, cols, strict=True)]), common,
-        [f"{p[0]}/{s}" for p in parts for s in p[1].sentences],
-        np.concatenate([p[1].row_sentence + o for p, o in zip(parts, offsets, strict=False)]),
-        np.concatenate([p[1].row_frame for p in parts]), parts[0][1].rate,
-        np.vstack([p[1].fill_mask[:, c] for p, c in zip(parts, cols, strict=True)]),
-        np.concatenate([p[1].head_residual for p in parts]), parts[0][1].neutral[cols[0]])
-    groups = [p[0] for p in parts for _ in p[1].sentences]
-    left_out = sorted({m for p in parts for m in p[2]} - set(common))
-    first_own = [parts[0][1].labels[j] for j in cols[0]]
+    d, groups, cols0, left_out = pool_subjects([p[:3] for p in parts])
+    first_own = [parts[0][1].labels[j] for j in cols0]
     return d, groups, parts[0][3], first_own, left_out
 
 

@@ -22,11 +22,12 @@ from facemotion.ingest.copy_fill import parse_copy_markers
 from facemotion.ingest.segments import Segment, segment_subject
 from facemotion.io.base import UNITS
 from facemotion.io.registry import FORMAT_NAMES
+from facemotion.regions.consensus import LabelMap, read_subject_label_map
 
 SHEET_COLUMNS = ("subject", "recordings", "format", "head_markers", "exclude_markers")
 OPTIONAL_COLUMNS = ("units", "include_markers", "simulate", "seed", "talker_seed",
                     "n_sentences", "sentence_duration", "segments", "subject_prefix",
-                    "copy_markers", "rate")
+                    "copy_markers", "rate", "label_map")
 DEFAULT_HELDOUT_FRACTION = 0.25
 _ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
@@ -62,6 +63,7 @@ class Subject:
     subject_prefix: str | None = None
     copy_markers: list[tuple[str, str]] = field(default_factory=list)
     rate: float | None = None   # declared frame rate (Hz), for files timed by time stamps
+    label_map: LabelMap | None = None  # its labels -> common names, to pool it with others
 
     @property
     def sentences(self) -> list[Segment]:
@@ -204,7 +206,20 @@ def subject_from_row(row: pd.Series, sid: str, where: str, path: Path,
         include_markers=_labels_cell(row, "include_markers", where, sid),
         units=units, simulate=design, seed=seed, talker_seed=talker_seed,
         n_sentences=n_sentences, sentence_duration=sentence_duration,
-        copy_markers=copy_markers, rate=rate)
+        copy_markers=copy_markers, rate=rate,
+        label_map=_label_map(_cell(row, "label_map"), path.parent, where, sid))
+
+
+def _label_map(cell: str | None, sheet_dir: Path, where: str, sid: str) -> LabelMap | None:
+    """The subject's label map (a TSV relative to the sheet), read and checked now so that a
+    bad map stops the study before any job runs."""
+    if cell is None:
+        return None
+    full = Path(cell) if Path(cell).is_absolute() else sheet_dir / cell
+    try:
+        return read_subject_label_map(full)
+    except InputError as e:
+        raise type(e)(f"{where} (subject {sid!r}): {e}") from None
 
 
 def _sentence_duration(duration: str | None, where: str) -> tuple[float, float] | None:
@@ -474,3 +489,42 @@ def recorded_names(subjects: dict[str, Subject], root: str | Path, sheet_dir: st
     """:func:`recorded_name` of every recording and segmentation file of ``subjects``."""
     return {f: recorded_name(f, root, sheet_dir, shared_data)
             for s in subjects.values() for f in [*s.recordings, *s.segment_sources]}
+
+
+def consensus_datasets(subjects: dict[str, Subject], design_datasets, enabled: bool,
+                       file_labels: dict[str, list[str]]) -> dict[str, str]:
+    """The cross-subject consensus (setting eval.consensus): each subject's first dataset with
+    a design, subject -> dataset ({} when not enabled).  Each subject's label map is checked
+    against the markers of its files now (``file_labels``), so a map naming a marker the
+    subject lacks stops the study before any job runs."""
+    from facemotion.regions.consensus import common_labels
+
+    if not enabled:
+        return {}
+    chosen: dict[str, str] = {}
+    for d, ds in design_datasets.items():
+        chosen.setdefault(ds.subject, d)
+    if len(chosen) < 2:
+        raise InputError(f"setting eval.consensus: pools two subjects or more with a design; "
+                         f"the study has {len(chosen)}")
+    for sid in chosen:
+        try:
+            common_labels(file_labels[sid], subjects[sid].label_map)
+        except InputError as e:
+            raise InputError(f"subject {sid!r}: {e}") from None
+    return chosen
+
+
+def consensus_params(subjects: dict[str, Subject], chosen: dict[str, str], root, sheet_dir,
+                     shared_data=None) -> list[dict]:
+    """What the consensus job depends on, per subject: its dataset and its label map's content
+    (so that the job reruns when a map's content changes), the map named as the study records
+    it."""
+    out = []
+    for sid, d in chosen.items():
+        lm = subjects[sid].label_map
+        out.append({"subject": sid, "dataset": d, "head_markers": subjects[sid].head_markers,
+                    "label_map": None if lm is None else {
+                        "source": recorded_name(lm.source, root, sheet_dir, shared_data),
+                        "common": lm.common, "line": lm.line}})
+    return out
