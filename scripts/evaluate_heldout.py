@@ -25,7 +25,8 @@ def main(sm, log, prov):
     fig = plot_error_curves({p.label: curve}, n_markers={p.label: len(held.labels)})
     save_figure(fig, figure_files(sm.output, "png"), "error_curve", prov)
     # k and the sentence are checked against the markers and held-out sentences at parse time
-    traj = heldout_trajectory(ranking, p.k, held, p.sentence - 1, p.marker)
+    traj = heldout_trajectory(ranking, p.k, held, requested=p.marker,
+                              sentence_number=p.sentence)
     write_table(traj.table(), sm.output.traj, "trajectory_errors", prov)
     fig = plot_trajectory(traj.time_s, traj.measured, traj.model, marker=traj.marker,
                           sentence=traj.sentence, k=traj.k, in_basis=traj.in_basis,

@@ -5,6 +5,7 @@ import logging
 import numpy as np
 import pytest
 
+from facemotion.errors import InputError
 from facemotion.ingest.displacements import Displacements
 from facemotion.ranking.routes import rank_markers
 from facemotion.regions.trajectory import heldout_trajectory, trajectory_marker
@@ -31,7 +32,7 @@ def test_the_requested_marker_is_predicted_from_the_main_markers():
     train, held = sentences(seed=1, frames=(200, 200)), sentences()
     ranking = rank_markers(train.A, train.labels)
     secondary = ranking.labels_in_order[3]
-    traj = heldout_trajectory(ranking, 2, held, 0, secondary)
+    traj = heldout_trajectory(ranking, 2, held, requested=secondary, sentence_number=1)
     main = [train.labels.index(m) for m in ranking.labels_in_order[:2]]
     j = train.labels.index(secondary)
     x = np.linalg.lstsq(train.A[:, main], train.A[:, j], rcond=None)[0]
@@ -67,7 +68,7 @@ def test_an_absent_marker_falls_back_to_the_secondary_marker_that_moves_most(cap
 def test_the_note_says_why_another_marker_is_drawn(requested, note):
     held = sentences()
     ranking = rank_markers(sentences(seed=2, frames=(200, 200)).A, held.labels)
-    traj = heldout_trajectory(ranking, 2, held, 1, requested)
+    traj = heldout_trajectory(ranking, 2, held, requested=requested, sentence_number=2)
     assert traj.note == note and not traj.in_basis
     assert set(traj.table()["requested_marker"]) == {requested or ""}
 
@@ -75,6 +76,25 @@ def test_the_note_says_why_another_marker_is_drawn(requested, note):
 def test_a_main_marker_is_copied_by_the_model():
     held = sentences()
     ranking = rank_markers(held.A, held.labels)
-    traj = heldout_trajectory(ranking, 2, held, 1, ranking.labels_in_order[0])
+    traj = heldout_trajectory(ranking, 2, held, requested=ranking.labels_in_order[0],
+                              sentence_number=2)
     assert traj.in_basis and np.array_equal(traj.model, traj.measured)
     assert (traj.table()["max_abs_error_mm"] == 0).all()
+
+
+def test_sentences_count_from_1_and_the_old_0_based_argument_warns():
+    held = sentences()
+    ranking = rank_markers(sentences(seed=2, frames=(200, 200)).A, held.labels)
+    assert heldout_trajectory(ranking, 2, held, requested="M5").sentence == "s31"
+    second = heldout_trajectory(ranking, 2, held, requested="M5", sentence_number=2)
+    assert second.sentence == "s32"
+    with pytest.warns(DeprecationWarning, match=r"counts held-out sentences from 0"):
+        old = heldout_trajectory(ranking, 2, held, 1, "M5")
+    np.testing.assert_array_equal(old.model, second.model)
+    with pytest.raises(InputError, match=r"sentence_number: held-out sentence 3 out of range "
+                                         r"for 2 held-out sentence\(s\) \(counting from 1\)"):
+        heldout_trajectory(ranking, 2, held, sentence_number=3)
+    with pytest.raises(InputError, match="sentence_number: held-out sentence 0 out of range"):
+        heldout_trajectory(ranking, 2, held, sentence_number=0)
+    with pytest.raises(InputError, match="give one of them"):
+        heldout_trajectory(ranking, 2, held, 0, sentence_number=1)

@@ -234,6 +234,21 @@ def test_s1_marker_13_is_lost_but_in_each_rest_frame_and_one_more(subjects):
         assert all(np.isfinite(r.points).all() for r in subjects[d].recordings)
 
 
+def test_truth_of_sentence_counts_from_1_and_the_0_based_call_warns(subjects):
+    s1 = subjects["S1"]
+    n = len(s1.recordings)
+    for number in (1, n):
+        rows = s1.truth_of_sentence(number, "lost_13")
+        np.testing.assert_array_equal(rows, sentence_rows(s1, number - 1, "lost_13"))
+        assert rows.shape[0] == s1.recordings[number - 1].n_frames
+    with pytest.warns(DeprecationWarning, match="counts sentences from 0"):
+        old = s1.sentence_truth(0, "head_motion")
+    np.testing.assert_array_equal(old, s1.truth_of_sentence(1, "head_motion"))
+    for bad in (0, n + 1):
+        with pytest.raises(InputError, match=rf"sentence number {bad} out of range 1..{n}"):
+            s1.truth_of_sentence(bad, "missing")
+
+
 def test_head_motion_and_noise_are_as_documented(subjects):
     subj = subjects["S2a"]
     hm = subj.truth["head_motion"]

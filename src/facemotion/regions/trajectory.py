@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from facemotion.errors import InputError
 from facemotion.regions.prediction import predict
 
 if TYPE_CHECKING:
@@ -73,13 +74,17 @@ def trajectory_marker(one: Displacements, main_markers: list[str], requested: st
     return marker
 
 
-def heldout_trajectory(ranking: MarkerRanking, k: int, held: Displacements, sentence: int,
-                       requested: str | None) -> HeldoutTrajectory:
+def heldout_trajectory(ranking: MarkerRanking, k: int, held: Displacements,
+                       sentence: int | None = None, requested: str | None = None, *,
+                       sentence_number: int | None = None) -> HeldoutTrajectory:
     """The trajectory (Fig. 9) of the marker ``requested`` (or the one
-    :func:`trajectory_marker` chooses) in held-out sentence ``sentence`` (0-based), predicted
-    from the first k pivots of ``ranking``."""
+    :func:`trajectory_marker` chooses) in held-out sentence ``sentence_number`` (counting from
+    1, as the setting eval.trajectory_sentence does; default the first), predicted from the
+    first k pivots of ``ranking``.  ``sentence`` (counting from 0) is deprecated and is removed
+    in 0.3."""
+    index = _sentence_index(sentence, sentence_number, len(held.sentences))
     main_markers = ranking.labels_in_order[:k]
-    one = held.subset([sentence])
+    one = held.subset([index])
     marker = trajectory_marker(one, main_markers, requested)
     in_basis = marker in main_markers
     if in_basis:
@@ -94,3 +99,24 @@ def heldout_trajectory(ranking: MarkerRanking, k: int, held: Displacements, sent
     return HeldoutTrajectory(marker, requested, one.sentences[0], k, in_basis,
                              np.arange(measured.shape[0]) / one.rate, measured,
                              pred[:, j].reshape(-1, 3))
+
+
+def _sentence_index(old: int | None, number: int | None, n: int) -> int:
+    """The 0-based index of held-out sentence ``number`` (from 1) or of the deprecated
+    ``old`` (from 0), checked against the ``n`` held-out sentences."""
+    if old is not None:
+        if number is not None:
+            raise InputError("sentence / sentence_number: give one of them (sentence_number "
+                             "counts from 1)")
+        import warnings
+
+        warnings.warn("heldout_trajectory(sentence=...) counts held-out sentences from 0 and "
+                      "is deprecated (removed in 0.3); use sentence_number=..., counting from "
+                      "1 as eval.trajectory_sentence does", DeprecationWarning, stacklevel=3)
+        index, name, first = int(old), "sentence", 0
+    else:
+        index, name, first = (1 if number is None else int(number)) - 1, "sentence_number", 1
+    if not 0 <= index < n:
+        raise InputError(f"{name}: held-out sentence {index + first} out of range for {n} "
+                         f"held-out sentence(s) (counting from {first})")
+    return index

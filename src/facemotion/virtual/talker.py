@@ -573,12 +573,27 @@ class SimulatedSubject:
     head_markers: list[str]
     truth: dict = field(default_factory=dict)
 
-    def sentence_truth(self, s: int, key: str) -> np.ndarray:
+    def truth_of_sentence(self, number: int, key: str) -> np.ndarray:
         """The rows of a per-frame truth array ('source_courses', 'head_motion', 'missing',
-        'lost_13') that belong to sentence ``s`` (0-based)."""
+        'lost_13') that belong to sentence ``number``, counting from 1 (the ``_s01`` file is
+        sentence 1)."""
         frames = self.truth["sentence_frames"]
+        if isinstance(number, bool) or not 1 <= int(number) <= len(frames):
+            raise InputError(f"sentence number {number!r} out of range 1..{len(frames)} "
+                             "(counting from 1)")
+        s = int(number) - 1
         start = int(np.sum(frames[:s]))
         return self.truth[key][start:start + int(frames[s])]
+
+    def sentence_truth(self, s: int, key: str) -> np.ndarray:
+        """Deprecated (removed in 0.3): :meth:`truth_of_sentence` of sentence ``s`` counted
+        from 0."""
+        import warnings
+
+        warnings.warn("SimulatedSubject.sentence_truth(s, ...) counts sentences from 0 and is "
+                      "deprecated (removed in 0.3); use truth_of_sentence(number, ...), "
+                      "counting from 1", DeprecationWarning, stacklevel=2)
+        return self.truth_of_sentence(int(s) + 1, key)
 
 
 def simulate_subject(design: str, seed: int = 0, n_sentences: int | None = None,
