@@ -2,7 +2,9 @@
 interval's stated coverage on fresh sentences, the cross-validation against a direct
 computation, the two-stage bootstrap, symmetric sets and the saved file."""
 
+import io
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -220,3 +222,27 @@ def test_an_unreached_target_is_said_and_saved(pilot, tmp_path):
     assert "no number of markers reached the target" in protocol_text(ms)
     with pytest.raises(InputError, match="on_unreached"):
         design_markers(pilot, on_unreached="maybe")
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_progress_bars_only_on_a_terminal(monkeypatch, capfd):
+    """The long steps of a design (the folds of the cross-validation and of each candidate)
+    show a bar on stderr when it is a terminal, and nothing when it is not."""
+    small = face_displacements(4, seed=5)
+    design_markers(small, target_mm=1.0, resamples=50, progress=True)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""                    # pytest's stderr is not a terminal
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    design_markers(small, target_mm=1.0, resamples=50, progress=True)
+    shown = term.getvalue()
+    assert "cross-validating k:   0%|          | 0/4 " in shown   # one fold a sentence
+    assert "scoring candidate sets" in shown
+    quiet = _Terminal()
+    monkeypatch.setattr(sys, "stderr", quiet)
+    design_markers(small, target_mm=1.0, resamples=50)
+    assert quiet.getvalue() == ""

@@ -161,8 +161,9 @@ class TakeSource:
     rate: float | None = None
 
 
-def progress_bar(total: int, what: str, show: bool):
-    """A progress bar on stderr (tqdm) when ``show`` and stderr is a terminal, else None."""
+def progress_bar(total: int, what: str, show: bool, unit: str = "take"):
+    """A progress bar on stderr (tqdm) when ``show`` and stderr is a terminal, else None (a
+    disabled bar when stderr is not a terminal: silent)."""
     if not show:
         return None
     try:
@@ -171,7 +172,7 @@ def progress_bar(total: int, what: str, show: bool):
         return None
     import sys
 
-    return tqdm(total=total, desc=what, unit="take", file=sys.stderr, disable=None,
+    return tqdm(total=total, desc=what, unit=unit, file=sys.stderr, disable=None,
                 leave=False)
 
 

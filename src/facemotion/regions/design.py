@@ -79,20 +79,39 @@ def _check_pilot(disp) -> int:
     return S
 
 
+def _bar(total: int, what: str, show: bool):
+    """A bar on stderr over the folds of a long step (a terminal only; else silent)."""
+    from facemotion.ingest.loading import progress_bar
+
+    return progress_bar(total, what, show, unit="fold")
+
+
+def _tick(bar) -> None:
+    if bar is not None:
+        bar.update(1)
+
+
 def cross_validated_errors(disp, force: Sequence[str] = (), exclude: Sequence[str] = (),
-                           max_folds: int = MAX_FOLDS) -> SentenceErrors:
+                           max_folds: int = MAX_FOLDS, progress: bool = False
+                           ) -> SentenceErrors:
     """The QR procedure's held-out error of every k, summed per sentence, each sentence
     predicted by a ranking made without it (module notes, step 1).  k stops where a fold's
-    curve stops (numerical rank) and before any excluded marker would become a main one."""
+    curve stops (numerical rank) and before any excluded marker would become a main one.
+    progress: a bar on stderr over the folds (on a terminal)."""
     S = _check_pilot(disp)
     rs = disp.row_sentence
     parts = []
-    for fold in sentence_folds(S, max_folds):
+    folds = sentence_folds(S, max_folds)
+    bar = _bar(len(folds), "cross-validating k", progress)
+    for fold in folds:
         test = np.isin(rs, fold)
         ranking = constrained_ranking(disp.A[~test], disp.labels, force=force, exclude=exclude)
         parts.append(sentence_error_sums(ranking, disp.A[test], disp.labels, rs[test],
                                          disp.sentences,
                                          k_max=len(disp.labels) - len(exclude) or None))
+        _tick(bar)
+    if bar is not None:
+        bar.close()
     K = min(p.ks.size for p in parts)
     order = {name: i for i, name in enumerate(disp.sentences)}
     sums = np.zeros((S, K))
@@ -104,11 +123,12 @@ def cross_validated_errors(disp, force: Sequence[str] = (), exclude: Sequence[st
     return SentenceErrors(parts[0].ks[:K], sums, counts, list(disp.sentences), len(disp.labels))
 
 
-def subset_errors(disp, subset: Sequence[int], max_folds: int = MAX_FOLDS
+def subset_errors(disp, subset: Sequence[int], max_folds: int = MAX_FOLDS, bar=None
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Cross-validated held-out error of a fixed subset of main markers (column indices):
     ``sums`` (S, n), each marker's summed 3-D error distance over each sentence's frames (0 for
-    the main markers, which are measured), and ``frames`` (S,)."""
+    the main markers, which are measured), and ``frames`` (S,).  bar: a progress bar ticked
+    once a fold."""
     S = _check_pilot(disp)
     A, rs = disp.A, disp.row_sentence
     n = A.shape[1]
@@ -126,6 +146,7 @@ def subset_errors(disp, subset: Sequence[int], max_folds: int = MAX_FOLDS
         fs = rs[test][::3]
         for j, col in enumerate(rest):
             sums[:, col] += np.bincount(fs, weights=dist[:, j], minlength=S)
+        _tick(bar)
     return sums, frames
 
 
@@ -367,13 +388,14 @@ def _interval(values: np.ndarray, level: float, units: int) -> tuple[np.ndarray,
 
 
 def _choose_k(disp, target_mm, k, force, exclude, groups, resamples, level, seed,
-              on_unreached: str = "raise") -> tuple[int, KForError | None]:
+              on_unreached: str = "raise", progress: bool = False
+              ) -> tuple[int, KForError | None]:
     n = len(disp.labels)
     if k is not None:
         if isinstance(k, bool) or not isinstance(k, int | np.integer) or not 1 <= k < n:
             raise InputError(f"k: must be an integer in 1..{n - 1} ({n} markers), got {k!r}")
         return int(k), None
-    curve = cross_validated_errors(disp, force, exclude)
+    curve = cross_validated_errors(disp, force, exclude, progress=progress)
     kft = k_for_error(curve, target_mm, resamples=resamples, level=level, seed=seed,
                       groups=groups)
     if kft.k is None and on_unreached == "largest":
@@ -389,7 +411,7 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
                    symmetric: bool = False, groups: Sequence[str] | None = None,
                    resamples: int = DEFAULT_RESAMPLES, level: float = DEFAULT_LEVEL,
                    seed: int = 0, max_subsets: int = MAX_SUBSETS,
-                   on_unreached: str = "raise") -> MarkerSetDesign:
+                   on_unreached: str = "raise", progress: bool = False) -> MarkerSetDesign:
     """Recommend k markers to place from the pilot ``Displacements`` (module notes).
 
     target_mm: the mean held-out error to reach (ignored when ``k`` is given); force / exclude:
@@ -397,7 +419,8 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
     each sentence's subject (pilot sentences from several subjects), for a bootstrap over
     subjects and sentences.  resamples, level, seed: the bootstrap's.  on_unreached: when
     no k reaches the target, "raise" (InputError) or "largest" (the largest k evaluated,
-    ``settings['target_reached']`` False)."""
+    ``settings['target_reached']`` False).  progress: bars on stderr over the
+    cross-validation folds (on a terminal; silent otherwise)."""
     if on_unreached not in ("raise", "largest"):
         raise InputError(f"on_unreached: 'raise' or 'largest', got {on_unreached!r}")
     labels = list(disp.labels)
@@ -409,19 +432,23 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
         if len(groups) != S:
             raise InputError(f"groups: {len(groups)} subjects given for {S} sentences")
     k, kft = _choose_k(disp, target_mm, k, force, exclude, groups, resamples, level, seed,
-                       on_unreached)
+                       on_unreached, progress)
     if len(force) > k:
         raise InputError(f"force: {len(force)} forced markers do not fit in k = {k}")
     rows, n = disp.A.shape
     table, errs = [], {}
-    for method, subset in _candidates(disp, k, force, exclude, symmetric, max_subsets):
-        sums, frames = subset_errors(disp, subset)
+    candidates = _candidates(disp, k, force, exclude, symmetric, max_subsets)
+    bar = _bar(len(candidates) * len(sentence_folds(S)), "scoring candidate sets", progress)
+    for method, subset in candidates:
+        sums, frames = subset_errors(disp, subset, bar=bar)
         errs[method] = (subset, sums, frames)
         kk = len(subset)
         table.append({"method": method, "k": kk, "subset": ",".join(labels[j] for j in subset),
                       "heldout_error_mm": float(sums.sum() / (frames.sum() * (n - kk))),
                       "training_rms_mm": projection_residual(disp.A, subset)
                       / math.sqrt(rows * (n - kk))})
+    if bar is not None:
+        bar.close()
     cand = pd.DataFrame(table)
     best = int(np.argmin(cand["heldout_error_mm"].to_numpy()))  # first on ties: QR
     cand["gap_mm"] = cand["heldout_error_mm"] - cand["heldout_error_mm"].iloc[best]

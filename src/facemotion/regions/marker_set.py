@@ -109,9 +109,10 @@ def design(paths, *, head_markers=(), drop_markers=(), target_mm: float = 1.0,
     subject is loaded under its own names and the subjects are pooled on the common names
     every one of them has (marker lists here are in common names); target_mm, k, force,
     exclude, symmetric,
-    resamples, level, seed: :func:`~facemotion.regions.design.design_markers`; progress: a
-    bar on stderr while the takes are read (on a terminal); options: the loading settings of
-    :func:`facemotion.load` (units, max_interp_s, long_gaps, neutral).
+    resamples, level, seed: :func:`~facemotion.regions.design.design_markers`; progress:
+    bars on stderr while the takes are read and over the cross-validation (on a terminal);
+    options: the loading settings of :func:`facemotion.load` (units, max_interp_s,
+    long_gaps, neutral).
     """
     from facemotion.ingest.loading import load
 
@@ -131,7 +132,7 @@ def design(paths, *, head_markers=(), drop_markers=(), target_mm: float = 1.0,
         groups, head0, own0 = subjects, head, None
     out = design_markers(disp, target_mm=target_mm, k=k, force=force, exclude=exclude,
                          symmetric=symmetric, groups=groups, resamples=resamples,
-                         level=level, seed=seed)
+                         level=level, seed=seed, progress=progress)
     ref, rest = _rest_pose(paths[0], fmt, head0, own0 or out.labels, options.get("units"))
     out.head_markers, out.head_reference, out.neutral = head, ref if head else None, rest
     if left_out:
