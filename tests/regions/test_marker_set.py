@@ -28,7 +28,8 @@ def run_cli(*args, cwd=None):
 @pytest.fixture(scope="module")
 def takes(tmp_path_factory):
     out = tmp_path_factory.mktemp("takes")
-    s = simulate_subject("S2a", seed=4, n_sentences=30, occlusions=False)
+    # 20 pilot takes and 60 fresh ones of the same talker and session
+    s = simulate_subject("S2a", seed=4, n_sentences=80, occlusions=False)
     paths = []
     for r in s.recordings:
         p = out / f"{r.source}.c3d"
@@ -62,14 +63,27 @@ def test_design_prints_the_set_its_k_and_interval(takes, tmp_path):
     assert bad.returncode == 2 and "unknown units" in bad.stderr
 
 
+def within(value: float, low: float, high: float) -> bool:
+    return low <= value <= high
+
+
 def test_reconstructed_c3d_reads_back_within_the_stated_error(takes, designed, tmp_path):
+    """What the design states: the mean 3-D error of the predicted markers' displacements
+    (from the take's first frame, in the head frame: Fig. 10's measure) over new sentences of
+    the pilot's talker and session, with an interval for that mean.  The reconstructed C3D of
+    60 fresh takes, read back through ezc3d, gives that measure inside the interval; the rule
+    is two-sided and rejects the same error one interval width higher or lower.  Positions
+    also carry the difference between each take's rest pose and the pilot's (not promised)."""
+    from facemotion.ingest.head_motion import align_head_transforms
+
     out, answer = designed
     held = takes[20:]
     proc = run_cli("reconstruct", out / "marker_set.json", *held, "--out", tmp_path,
                    "--predict-all")
     assert proc.returncode == 0, proc.stderr
+    ms = MarkerSetDesign.load(out / "marker_set.json")
     predicted = answer["predicted"]
-    dist, per_take = [], []
+    sums, frames = 0.0, 0
     for p in held:
         c = ezc3d.c3d(str(tmp_path / p.name))
         labels = list(c["parameters"]["POINT"]["LABELS"]["value"])
@@ -81,20 +95,19 @@ def test_reconstructed_c3d_reads_back_within_the_stated_error(takes, designed, t
                 assert desc[j].startswith("predicted;") and np.all(res[j] == 0)
             else:
                 assert np.all(res[j] > 0)
+        xyz = np.transpose(c["data"]["points"][:3], (2, 1, 0))         # (F, n, 3), mm
         truth = read_c3d(p)
-        back = read_c3d(tmp_path / p.name)
-        d = np.linalg.norm(back.points[:, [back.index(m) for m in predicted]]
-                           - truth.points[:, [truth.index(m) for m in predicted]], axis=2)
-        dist.append(d)
-        per_take.append(d.mean())
-    pooled = float(np.concatenate(dist).mean())
+        # the error vectors in the head frame (the head markers are the take's own)
+        _, _, R, _ = align_head_transforms(truth, ms.head_markers, ms.head_reference)
+        e = (xyz[:, [labels.index(m) for m in predicted]]
+             - truth.points[:, [truth.index(m) for m in predicted]])
+        e = np.einsum("fij,fmj->fmi", R, e)
+        d = np.linalg.norm(e - e[0], axis=2)    # displacement error: rest pose taken out
+        sums, frames = sums + d.sum(), frames + d.size
+    pooled = sums / frames
     lo, hi = answer["error_low_mm"], answer["error_high_mm"]
-    # the pooled error of 10 fresh takes: within the stated interval, widened by the
-    # spread of a mean of 10 sentences (3 standard errors)
-    se = float(np.std(per_take, ddof=1) / np.sqrt(len(per_take)))
-    assert lo - 3 * se <= pooled <= hi + 3 * se, (pooled, lo, hi, se)
-    # and the rule rejects a clearly different error
-    assert not (lo - 3 * se <= 2 * pooled <= hi + 3 * se)
+    assert within(pooled, lo, hi), (pooled, lo, hi)
+    assert not within(pooled + (hi - lo), lo, hi) and not within(pooled - (hi - lo), lo, hi)
 
 
 def test_trc_and_the_flag_table(takes, designed, tmp_path):
