@@ -20,7 +20,11 @@ question "which k markers do I glue on the next speakers?":
 3. **Expected error per marker, with an interval.**  Each predicted marker's mean 3-D held-out
    error and the pooled mean, with bootstrap intervals over sentences (and over subjects
    first when the sentences come from several, :func:`bootstrap_weights`): the expanded
-   percentile interval (:func:`expanded_alpha`), as a pilot has few sentences.
+   percentile interval (:func:`expanded_alpha`), as a pilot has few sentences.  The pooled
+   mean's interval also resamples the choice of the set (:func:`selection_interval`): the
+   set is chosen from the sentences that then measure it, which flatters it, so each
+   resample chooses its own set again and the interval follows the resampled difference
+   between that set's error and its estimate.
 
 ``symmetric`` restricts the candidates to left-right symmetric sets: markers are paired by their
 labels (:func:`mirror_pairs`), and greedy selection adds a pair, or a midline marker, at a time.
@@ -349,22 +353,41 @@ def _json_safe(value):
     return value
 
 
+#: The candidate methods (module notes, step 2).
+QR, GREEDY, EXHAUSTIVE, SYMMETRIC = ("QR pivots", "greedy", "exhaustive (training residual)",
+                                     "symmetric greedy")
+
+
+def _methods(n: int, k: int, force, exclude, symmetric: bool, max_subsets: int) -> list[str]:
+    if symmetric:
+        return [SYMMETRIC]
+    out = [QR, GREEDY]
+    if not force and not exclude and math.comb(n, k) <= max_subsets:
+        out.append(EXHAUSTIVE)
+    return out
+
+
+def select_subset(method: str, A: np.ndarray, labels: Sequence[str], k: int, force=(),
+                  exclude=()) -> list[int]:
+    """The k markers (column indices) that candidate ``method`` chooses from the rows A."""
+    labels = list(labels)
+    if method == QR:
+        ranking = constrained_ranking(A, labels, force=force, exclude=exclude)
+        return [int(j) for j in ranking.order[:k]]
+    G = A.T @ A
+    if method == SYMMETRIC:
+        return symmetric_greedy(G, labels, k, force, exclude)
+    if method == GREEDY:
+        return greedy_subset(G, k, force=[labels.index(m) for m in force],
+                             exclude=[labels.index(m) for m in exclude])
+    return exhaustive_subset(G, k)[0]
+
+
 def _candidates(disp, k: int, force, exclude, symmetric: bool, max_subsets: int
                 ) -> list[tuple[str, list[int]]]:
     """The candidate sets of k markers (module notes, step 2), as column indices."""
-    labels = list(disp.labels)
-    A = disp.A
-    G = A.T @ A
-    if symmetric:
-        return [("symmetric greedy", symmetric_greedy(G, labels, k, force, exclude))]
-    fi = [labels.index(m) for m in force]
-    ei = [labels.index(m) for m in exclude]
-    ranking = constrained_ranking(A, labels, force=force, exclude=exclude)
-    out = [("QR pivots", [int(j) for j in ranking.order[:k]]),
-           ("greedy", greedy_subset(G, k, force=fi, exclude=ei))]
-    if not force and not exclude and math.comb(len(labels), k) <= max_subsets:
-        out.append(("exhaustive (training residual)", exhaustive_subset(G, k)[0]))
-    return out
+    return [(m, select_subset(m, disp.A, disp.labels, k, force, exclude))
+            for m in _methods(len(disp.labels), k, force, exclude, symmetric, max_subsets)]
 
 
 def expanded_alpha(level: float, units: int) -> float:
@@ -453,9 +476,16 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
     best = int(np.argmin(cand["heldout_error_mm"].to_numpy()))  # first on ties: QR
     cand["gap_mm"] = cand["heldout_error_mm"] - cand["heldout_error_mm"].iloc[best]
     cand["recommended"] = np.arange(len(cand)) == best
-    subset, sums, frames = errs[cand["method"].iloc[best]]
+    method = cand["method"].iloc[best]
+    subset, sums, frames = errs[method]
     W = bootstrap_weights(S, resamples, np.random.default_rng(seed), groups)
     per, overall = _per_marker(labels, subset, sums, frames, W, level, groups)
+    bar = _bar(resamples, "resampling the selection", progress)
+    units = S if groups is None else len(set(groups))
+    overall = (overall[0], *selection_interval(disp, method, k, force, exclude, W, level,
+                                               overall[0], units, bar))
+    if bar is not None:
+        bar.close()
     main = [labels[j] for j in subset]
     rest = [m for m in labels if m not in set(main)]
     X = np.linalg.lstsq(disp.A[:, subset], disp.A[:, [labels.index(m) for m in rest]],
@@ -494,3 +524,82 @@ def _per_marker(labels, subset, sums, frames, W, level, groups=None
         "expected_error_mm": mean, "error_low_mm": lo, "error_high_mm": hi})
     overall = float(sums.sum() / (frames.sum() * (n - k)))
     return per, (overall, float(plo), float(phi))
+
+
+def _sentence_grams(disp) -> np.ndarray:
+    """A_s^T A_s of every sentence s, (S, n, n)."""
+    S, n = len(disp.sentences), disp.A.shape[1]
+    out = np.zeros((S, n, n))
+    for s in range(S):
+        As = disp.A[disp.row_sentence == s]
+        out[s] = As.T @ As
+    return out
+
+
+def _gram_factor(G: np.ndarray) -> np.ndarray:
+    """B with B^T B = G (n x n): QR with column pivoting of B chooses A's pivots."""
+    lam, V = np.linalg.eigh(G)
+    return np.sqrt(np.clip(lam, 0.0, None))[:, None] * V.T
+
+
+def _distance_sums(disp, rows_of, sentences, main, rest, X) -> float:
+    """Summed 3-D distance between measured and predicted (A_m X) secondary markers over the
+    frames of ``sentences``."""
+    total = 0.0
+    for s in sentences:
+        As = rows_of[s]
+        E = As[:, rest] - As[:, main] @ X
+        total += np.sqrt((E.reshape(-1, 3, len(rest)) ** 2).sum(axis=1)).sum()
+    return total
+
+
+def selection_interval(disp, method: str, k: int, force, exclude, W: np.ndarray,
+                       level: float, estimate: float, units: int, bar=None
+                       ) -> tuple[float, float]:
+    """The interval of the pooled expected error with the choice of the set resampled too
+    (module notes, step 3).  The set is chosen from the same pilot sentences that then
+    measure it, which flatters it.  In each bootstrap resample (sentence weights ``W``) the
+    set is chosen again by ``method`` and every pilot sentence predicted as in the
+    cross-validation (X fitted on the resample without the sentence's fold; a sentence the
+    resample left out by the whole resample): e_b, the pooled error weighted as the resample
+    draws the sentences, is the pilot's estimate in the bootstrap world, t_b, every sentence
+    once, the error on its population.  t_b - e_b stands for the unknown t - e, and the
+    interval is ``estimate`` plus its expanded percentiles (:func:`expanded_alpha`, ``units``
+    resampled: sentences, or subjects)."""
+    labels, n = list(disp.labels), disp.A.shape[1]
+    G = _sentence_grams(disp)
+    rows_of = [disp.A[disp.row_sentence == s] for s in range(len(disp.sentences))]
+    frames = np.array([r.shape[0] // 3 for r in rows_of], float)
+    diffs = []
+    for w in W:
+        _tick(bar)
+        inbag, oob = np.flatnonzero(w > 0), np.flatnonzero(w == 0)
+        if inbag.size < 2:
+            continue
+        Gw = np.tensordot(w, G, axes=1)
+        main = (select_subset(method, _gram_factor(Gw), labels, k, force, exclude)
+                if method == QR else _select_on_gram(method, Gw, labels, k, force, exclude))
+        rest = [j for j in range(n) if j not in set(main)]
+        sums = np.zeros(len(frames))
+        for part in [*(inbag[f] for f in sentence_folds(inbag.size)), oob]:
+            Gf = Gw - np.tensordot(w[part], G[part], axes=1)
+            X = np.linalg.lstsq(Gf[np.ix_(main, main)], Gf[np.ix_(main, rest)], rcond=None)[0]
+            for s in part:
+                sums[s] = _distance_sums(disp, rows_of, [s], main, rest, X)
+        e_b = (w @ sums) / ((w @ frames) * len(rest))
+        t_b = sums.sum() / (frames.sum() * len(rest))
+        diffs.append(t_b - e_b)
+    if not diffs:
+        return float("nan"), float("nan")
+    lo, hi = _interval(np.asarray(diffs), level, units)
+    return float(estimate + lo), float(estimate + hi)
+
+
+def _select_on_gram(method, G, labels, k, force, exclude) -> list[int]:
+    """:func:`select_subset` for the methods that need only A^T A."""
+    if method == SYMMETRIC:
+        return symmetric_greedy(G, labels, k, force, exclude)
+    if method == GREEDY:
+        return greedy_subset(G, k, force=[labels.index(m) for m in force],
+                             exclude=[labels.index(m) for m in exclude])
+    return exhaustive_subset(G, k)[0]
