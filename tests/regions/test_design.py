@@ -246,3 +246,21 @@ def test_progress_bars_only_on_a_terminal(monkeypatch, capfd):
     monkeypatch.setattr(sys, "stderr", quiet)
     design_markers(small, target_mm=1.0, resamples=50)
     assert quiet.getvalue() == ""
+
+
+def test_the_selection_is_resampled_through_the_gram_matrix(pilot):
+    """QR pivots from a factor of A^T A are A's own (56 markers: not a multiple of 3), and
+    the selection interval with QR re-selecting holds the estimate."""
+    from facemotion.regions.design import QR, _gram_factor, select_subset, selection_interval
+
+    keep = [j for j, m in enumerate(pilot.labels) if m != "57"]
+    d = Displacements(pilot.A[:, keep], [pilot.labels[j] for j in keep], pilot.sentences,
+                      pilot.row_sentence, pilot.row_frame, pilot.rate, pilot.fill_mask[:, keep],
+                      pilot.head_residual, pilot.neutral[keep])
+    B = _gram_factor(d.A.T @ d.A)
+    assert B.shape == (57, 56)
+    np.testing.assert_allclose(B.T @ B, d.A.T @ d.A, rtol=1e-9, atol=1e-6 * np.abs(d.A).max())
+    assert select_subset(QR, B, d.labels, 6) == select_subset(QR, d.A, d.labels, 6)
+    W = bootstrap_weights(len(d.sentences), 40, np.random.default_rng(0))
+    lo, hi = selection_interval(d, QR, 4, (), (), W, 0.9, 0.8, len(d.sentences))
+    assert np.isfinite(lo) and lo < 0.8 < hi

@@ -537,9 +537,12 @@ def _sentence_grams(disp) -> np.ndarray:
 
 
 def _gram_factor(G: np.ndarray) -> np.ndarray:
-    """B with B^T B = G (n x n): QR with column pivoting of B chooses A's pivots."""
+    """B with B^T B = G: QR with column pivoting of B chooses A's pivots.  Rows padded with
+    zeros to a multiple of 3, as the rows of a displacement matrix come (they add nothing to
+    B^T B)."""
     lam, V = np.linalg.eigh(G)
-    return np.sqrt(np.clip(lam, 0.0, None))[:, None] * V.T
+    B = np.sqrt(np.clip(lam, 0.0, None))[:, None] * V.T
+    return np.vstack([B, np.zeros((-B.shape[0] % 3, B.shape[1]))])
 
 
 def _distance_sums(disp, rows_of, sentences, main, rest, X) -> float:
