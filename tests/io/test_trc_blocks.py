@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
+from facemotion.io import base, trc_blocks
 from facemotion.io.recording import Recording
 from facemotion.io.trc import read_trc, write_trc
-from facemotion.io import base, trc_blocks
 from facemotion.io.trc_blocks import open_trc_blocks
 
 

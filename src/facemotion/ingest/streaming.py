@@ -77,7 +77,7 @@ class Budget:
         if not np.isfinite(max_gib) or max_gib <= 0:
             raise InputError(f"max_gib: must be positive, got {max_gib!r}")
         total = max_gib * 2**30
-        text = int(min(24 * 2**20, max(2**20, total / 24)))
+        text = int(min(16 * 2**20, max(2**20, total / 24)))
         per_frame = 24 * max(n_used, 1) * WINDOW_COPIES
         window = int(0.5 * total / per_frame)
         frames = max(16, min(window // 4, 8192))
