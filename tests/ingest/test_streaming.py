@@ -211,3 +211,28 @@ def test_one_take_without_head_markers_loads_in_one_pass(tmp_path, monkeypatch, 
     assert sorted(x.name for x in tmp_path.iterdir()) == sorted(
         [f"{n}{i}.npz" for n in ("clean", "gapped") for i in (1, 2)] + ["clean.trc",
                                                                         "gapped.trc"])
+
+
+def test_c3d_takes_stream_in_blocks_as_the_whole_take_load(tmp_path, monkeypatch):
+    """C3D (Intel, float storage) through the block reader: the whole-take load's A to the
+    fill tolerance, the same pivots; no take is read whole."""
+    from facemotion.ingest import stream_scan
+    from facemotion.io.c3d import write_c3d
+
+    paths = []
+    for i, (frames, gaps) in enumerate(((1500, True), (700, False))):
+        p = tmp_path / f"take{i}.c3d"
+        write_c3d(p, _take(10 + i, frames, gaps))
+        paths.append(str(p))
+    monkeypatch.setattr(stream_scan, "WholeTake", None)  # a whole read would fail here
+    kw = {**KW, "train": [0], "heldout": [1]}
+    whole = load_dataset(paths, "c3d", **kw)
+    s = stream_dataset(paths, "c3d", tmp_path / "A.npz", **kw, max_gib=MAX_GIB)
+    A, D = whole.displacements.A, load_displacements(tmp_path / "A.npz")
+    np.testing.assert_allclose(D.A, A, rtol=0, atol=FILL_RTOL * np.abs(A).max())
+    np.testing.assert_array_equal(D.fill_mask, whole.displacements.fill_mask)
+    tr = whole.train.A
+    r_whole = rank_from_gram(tr.T @ tr, tr.shape[0], whole.displacements.labels)
+    r_stream = rank_from_gram(s.gram, s.train_rows, s.labels)
+    assert list(r_stream.order) == list(r_whole.order)
+    np.testing.assert_allclose(r_stream.r, r_whole.r, rtol=1e-9)

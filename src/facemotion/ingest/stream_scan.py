@@ -70,11 +70,20 @@ class WholeTake:
 
 
 def take_blocks(path, fmt: str, units: str | None = None, subject_prefix: str | None = None):
-    """The take's header and a ``blocks(block_bytes)`` iterator of (first frame, points)."""
+    """The take's header and a ``blocks(block_bytes)`` iterator of (first frame, points):
+    the block readers of TRC (:mod:`facemotion.io.trc_blocks`) and of Intel C3D
+    (:mod:`facemotion.io.c3d_blocks`), else the take read whole (:class:`WholeTake`)."""
     if fmt == "trc" and not subject_prefix:
         from facemotion.io.trc_blocks import open_trc_blocks
 
         return open_trc_blocks(path, units)
+    if fmt == "c3d" and not subject_prefix:
+        from facemotion.io.c3d import c3d_layout
+        from facemotion.io.c3d_blocks import open_c3d_blocks
+        from facemotion.io.base import check_readable
+
+        if c3d_layout(check_readable(path)).processor == "Intel":
+            return open_c3d_blocks(path, units)
     return WholeTake(path, fmt, units, subject_prefix)
 
 

@@ -19,8 +19,9 @@ holding a whole recording:
 blocks' sizes, the log says the bound and the sizes, and a gap whose fill needs a window larger
 than the bound is an error naming it.
 Not streamed (an InputError says so): sentences cut from takes (``segments``) and
-``copy_markers`` (their offsets are medians over every take), and readers without a block
-reader (formats other than TRC, and TRC with a subject prefix: read whole, then blocked).
+``copy_markers`` (their offsets are medians over every take). Readers without a block reader
+(formats other than TRC and Intel C3D, and files with a subject prefix) read the take whole,
+then give it in blocks.
 """
 
 from __future__ import annotations

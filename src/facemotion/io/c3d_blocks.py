@@ -1,0 +1,192 @@
+"""C3D files read in blocks of frames with numpy, the points as :func:`facemotion.io.c3d.read_c3d`
+gives them (ezc3d's reading), memory holding one block, never the take.
+
+:func:`open_c3d_blocks` checks the file's size against its header (:func:`check_c3d_size`),
+reads the parameter section (labels, rate, units, POINT:SCALE and the lists of points that are
+not markers), and :meth:`C3DBlocks.blocks` then reads the data section in blocks. Per point and
+frame a C3D file holds four words (C3D User Guide, "3D point data"):
+
+* float storage (POINT:SCALE < 0): X, Y, Z as 4-byte floats, then a float: negative for
+  an invalid sample, else an integer with the residual in its high byte and the cameras
+  that saw the point in its low byte (as ezc3d reads it);
+* integer storage (POINT:SCALE > 0): X, Y, Z as 16-bit integers times POINT:SCALE, then the
+  camera mask byte and the residual byte (signed);
+
+followed by the frame's analog samples. As in ``read_c3d``: the coordinates at the 32-bit
+precision C3D stores, a sample missing (NaN) where its residual is negative, a coordinate not
+finite, or all three are exactly 0 with a residual that is not positive. Only files written
+for Intel processors (little-endian IEEE floats) are read in blocks; others are refused in one
+line (the caller reads them whole, through ezc3d).
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from facemotion.errors import InputError
+from facemotion.io.base import check_readable, unit_scale
+from facemotion.io.c3d import C3DLayout, _header_disagreement, check_c3d_size
+
+
+def c3d_parameters(path: Path, layout: C3DLayout) -> dict[str, dict[str, dict]]:
+    """The parameter section of an Intel C3D file as ``{GROUP: {NAME: {"value": [...]}}}``
+    (ezc3d's shape): character arrays as lists of strings (trailing spaces stripped, as
+    ezc3d gives them), numbers as flat lists."""
+    with open(path, "rb") as fh:
+        head = fh.read(512)
+        fh.seek((head[0] - 1) * 512)
+        section = fh.read(255 * 512)
+    section = section[:max(section[2], 1) * 512]
+    groups: dict[int, str] = {}
+    params: list[tuple[int, str, dict]] = []
+    pos = 4
+    while pos + 2 <= len(section) and section[pos] != 0:
+        nchars, ident = struct.unpack("bb", section[pos:pos + 2])
+        name = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1").strip().upper()
+        off_at = pos + 2 + abs(nchars)
+        (offset,) = struct.unpack("<h", section[off_at:off_at + 2])
+        if ident < 0:
+            groups[-ident] = name
+        else:
+            params.append((ident, name, {"value": _value(section, off_at + 2)}))
+        if offset <= 0:
+            break
+        pos = off_at + offset
+    out: dict[str, dict[str, dict]] = {g: {} for g in groups.values()}
+    for ident, name, entry in params:
+        if ident in groups:
+            out[groups[ident]][name] = entry
+    return out
+
+
+def _value(section: bytes, body: int) -> list:
+    """A parameter's data (the entry's type byte at ``body``)."""
+    dtype, ndim = struct.unpack("bb", section[body:body + 2])
+    dims = list(section[body + 2:body + 2 + ndim])
+    start = body + 2 + ndim
+    count = int(np.prod(dims, dtype=np.int64)) if ndim else 1
+    raw = section[start:start + abs(dtype) * count]
+    if dtype == -1:
+        if ndim <= 1:
+            return [raw.decode("latin-1").rstrip()]
+        width = dims[0]
+        if width == 0:
+            return [""] * int(np.prod(dims[1:], dtype=np.int64))
+        return [raw[i:i + width].decode("latin-1").rstrip() for i in range(0, len(raw), width)]
+    kind = {1: "<u1", 2: "<i2", 4: "<f4"}.get(dtype)
+    return [] if kind is None else np.frombuffer(raw, dtype=kind).tolist()
+
+
+@dataclass
+class C3DBlocks:
+    """An Intel C3D file's header and parameters, and its points in blocks (:meth:`blocks`)."""
+
+    path: Path
+    layout: C3DLayout
+    rate: float
+    labels: list[str]
+    kept: np.ndarray           # indices of the points that are markers
+    point_scale: float         # POINT:SCALE (< 0: float storage)
+    scale: float               # unit scale to mm
+    units: str
+    units_source: str
+
+    @property
+    def n_frames(self) -> int:
+        return self.layout.frames
+
+    def blocks(self, block_bytes: int = 32 * 2**20) -> Iterator[tuple[int, np.ndarray]]:
+        """(index of the block's first frame, its points (frames, markers, 3) in mm)."""
+        lay = self.layout
+        floats = lay.float_storage
+        words = 4 * lay.points + lay.analog_per_frame
+        dtype = np.dtype("<f4" if floats else "<i2")
+        step = max(1, block_bytes // (words * dtype.itemsize))
+        with open(self.path, "rb") as fh:
+            fh.seek(lay.data_start)
+            for a in range(0, lay.frames, step):
+                b = min(lay.frames, a + step)
+                raw = np.fromfile(fh, dtype=dtype, count=(b - a) * words)
+                if raw.size != (b - a) * words:  # the size check makes this unreachable
+                    raise InputError(f"{self.path}: C3D data section ends at frame {a}")
+                yield a, self._points(raw.reshape(b - a, words)[:, :4 * lay.points])
+
+    def _points(self, words: np.ndarray) -> np.ndarray:
+        """(frames, markers, 3) mm from one block's point words (frames, 4 x points)."""
+        F = len(words)
+        w = words.reshape(F, self.layout.points, 4)[:, self.kept]
+        if self.layout.float_storage:
+            xyz = w[..., :3].astype(np.float64)
+            # the 4th word, a float: negative for an invalid sample; else its integer part
+            # holds the residual in the high byte (times |POINT:SCALE|), the cameras below
+            f = w[..., 3].astype(np.float64)
+            whole = np.trunc(np.where(np.isfinite(f) & (f >= 0), f, 0.0)).astype(np.int64)
+            residual = np.where(f < 0, -1.0, (whole >> 8) & 0xFF)
+        else:  # int16 x POINT:SCALE in double, kept at float32 as ezc3d's reading is
+            xyz = (w[..., :3] * float(self.point_scale)).astype(np.float32).astype(np.float64)
+            residual = w[..., 3:].view(np.int8)[..., 1].astype(np.float64)
+        ok = np.isfinite(xyz[..., 0]) & np.isfinite(xyz[..., 1]) & np.isfinite(xyz[..., 2])
+        invalid = (residual < 0) | ~ok
+        invalid |= (xyz[..., 0] == 0) & (xyz[..., 1] == 0) & (xyz[..., 2] == 0) & ~(residual > 0)
+        xyz *= self.scale
+        xyz[invalid] = np.nan
+        return xyz
+
+
+def open_c3d_blocks(path, units: str | None = None) -> C3DBlocks:
+    """An Intel C3D file's header and parameters (the checks and choices of
+    :func:`~facemotion.io.c3d.read_c3d`), ready to give its points in blocks."""
+    from facemotion.io.c3d_points import describe_dropped, non_marker_points
+
+    p = check_readable(path)
+    layout = check_c3d_size(p)
+    if layout.processor != "Intel":
+        raise InputError(f"{p}: C3D written for a {layout.processor} processor; the block "
+                         "reader reads Intel files only (read it whole)")
+    damaged = _header_disagreement(p, layout)
+    if damaged:
+        logging.getLogger("facemotion").warning("%s: %s", p, damaged)
+    point = c3d_parameters(p, layout).get("POINT", {})
+    labels = list(point.get("LABELS", {}).get("value", []))
+    k = 2
+    while len(labels) < layout.points and f"LABELS{k}" in point:
+        labels += point[f"LABELS{k}"]["value"]
+        k += 1
+    if len(labels) < layout.points:
+        raise InputError(f"{p}: POINT:LABELS has {len(labels)} labels for {layout.points} "
+                         "points")
+    labels = [str(x).strip() for x in labels[:layout.points]]
+    not_markers = non_marker_points(point, labels)
+    if not_markers:
+        logging.getLogger("facemotion").info(
+            "%s: left out %d points that are not markers (%s)", p, len(not_markers),
+            describe_dropped(not_markers))
+    kept = np.array([i for i, lab in enumerate(labels) if lab not in not_markers], dtype=int)
+    if kept.size == 0:
+        raise InputError(f"{p}: no marker points (all {layout.points} points are "
+                         f"{', '.join(sorted(set(not_markers.values())))})")
+    labels = [labels[i] for i in kept]
+    empty = [int(kept[i]) for i, lab in enumerate(labels) if not lab]
+    if empty:
+        raise InputError(f"{p}: point(s) {empty[:5]} have an empty label in POINT:LABELS")
+    rate_v = point.get("RATE", {}).get("value", [])
+    with open(p, "rb") as fh:
+        head = fh.read(512)
+    rate = float(rate_v[0]) if rate_v else float(struct.unpack("<f", head[20:24])[0])
+    scale_v = point.get("SCALE", {}).get("value", [])
+    point_scale = float(scale_v[0]) if scale_v else float(struct.unpack("<f", head[12:16])[0])
+    u = [str(x).strip() for x in point.get("UNITS", {}).get("value", [])]
+    if u and u[0]:
+        used, source = u[0], "file"
+    elif units is not None:
+        used, source = units, "sheet"
+    else:
+        raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
+    scale = unit_scale(used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
+    return C3DBlocks(p, layout, rate, labels, kept, point_scale, scale, used, source)
