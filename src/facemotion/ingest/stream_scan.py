@@ -78,9 +78,9 @@ def take_blocks(path, fmt: str, units: str | None = None, subject_prefix: str | 
 
         return open_trc_blocks(path, units)
     if fmt == "c3d" and not subject_prefix:
+        from facemotion.io.base import check_readable
         from facemotion.io.c3d import c3d_layout
         from facemotion.io.c3d_blocks import open_c3d_blocks
-        from facemotion.io.base import check_readable
 
         if c3d_layout(check_readable(path)).processor == "Intel":
             return open_c3d_blocks(path, units)
