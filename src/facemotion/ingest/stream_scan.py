@@ -295,15 +295,18 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
     far, med, missing = got
     step = max(1, block_bytes // (24 * n))
     cut = np.flatnonzero(st.cut)
-    columns = read_columns(scratch, n, F, cut, step) if cut.size else np.empty((F, 0, 3))
-    fast, top = _fast_outliers(columns, cut, far, missing, src.rate, limits.max_speed_mm_s)
-    outliers = far | fast
+    if cut.size:
+        fast, top = _fast_outliers(read_columns(scratch, n, F, cut, step), cut, far, missing,
+                                   src.rate, limits.max_speed_mm_s)
+        outliers = far | fast
+    else:  # no step the screen flags: no sample is too fast (zeros, never written)
+        fast, top, outliers = np.zeros((F, n), dtype=bool), np.zeros(n), far
     spread = _check_spread(med, rec, limits)
     if st.any_ok and not st.moved:
         raise InputError(f"{where}: no marker moves in this take (every sample equals the "
                          "marker's first): a frozen or placeholder take")
     notes = outlier_notes(outliers, far, fast, st.far_max, top, used, src.rate, limits)
-    measured = int((~missing).sum())
+    measured = missing.size - int(np.count_nonzero(missing))
     if measured and outliers.sum() > MAX_OUTLIER_FRACTION * measured:
         raise InputError(f"{where}: {outliers.sum()} of the take's {measured} measured samples "
                          f"are outliers (more than {MAX_OUTLIER_FRACTION:.0%}; first: "
