@@ -70,3 +70,13 @@ def test_other_processors_are_refused_in_one_line_and_read_whole():
     assert isinstance(whole, WholeTake)
     np.testing.assert_array_equal(whole.rec.points, read_c3d(p).points)
     assert not isinstance(take_blocks(SUITE / "ktk_racing_static.c3d", "c3d"), WholeTake)
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in SUITE.glob("*.c3d")))
+def test_labels_without_the_data_are_read_c3ds(name):
+    """The labels the streamed loader checks first: from the parameter section for Intel
+    files (no data read), from the whole file for the others; read_c3d's either way."""
+    from facemotion.io.registry import get_format
+
+    p = SUITE / name
+    assert get_format("c3d").labels(p) == read_c3d(p).labels

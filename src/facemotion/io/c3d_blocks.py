@@ -142,8 +142,6 @@ class C3DBlocks:
 def open_c3d_blocks(path, units: str | None = None) -> C3DBlocks:
     """An Intel C3D file's header and parameters (the checks and choices of
     :func:`~facemotion.io.c3d.read_c3d`), ready to give its points in blocks."""
-    from facemotion.io.c3d_points import describe_dropped, non_marker_points
-
     p = check_readable(path)
     layout = check_c3d_size(p)
     if layout.processor != "Intel":
@@ -153,6 +151,29 @@ def open_c3d_blocks(path, units: str | None = None) -> C3DBlocks:
     if damaged:
         logging.getLogger("facemotion").warning("%s: %s", p, damaged)
     point = c3d_parameters(p, layout).get("POINT", {})
+    labels, kept = _marker_points(p, layout, point)
+    rate_v = point.get("RATE", {}).get("value", [])
+    with open(p, "rb") as fh:
+        head = fh.read(512)
+    rate = float(rate_v[0]) if rate_v else float(struct.unpack("<f", head[20:24])[0])
+    scale_v = point.get("SCALE", {}).get("value", [])
+    point_scale = float(scale_v[0]) if scale_v else float(struct.unpack("<f", head[12:16])[0])
+    u = [str(x).strip() for x in point.get("UNITS", {}).get("value", [])]
+    if u and u[0]:
+        used, source = u[0], "file"
+    elif units is not None:
+        used, source = units, "sheet"
+    else:
+        raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
+    scale = unit_scale(used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
+    return C3DBlocks(p, layout, rate, labels, kept, point_scale, scale, used, source)
+
+
+def _marker_points(p: Path, layout: C3DLayout, point: dict) -> tuple[list[str], np.ndarray]:
+    """The markers' labels and their points' indices (POINT:LABELS, LABELS2, ...; the points
+    other POINT parameters list as not markers left out, logged)."""
+    from facemotion.io.c3d_points import describe_dropped, non_marker_points
+
     labels = list(point.get("LABELS", {}).get("value", []))
     k = 2
     while len(labels) < layout.points and f"LABELS{k}" in point:
@@ -175,18 +196,15 @@ def open_c3d_blocks(path, units: str | None = None) -> C3DBlocks:
     empty = [int(kept[i]) for i, lab in enumerate(labels) if not lab]
     if empty:
         raise InputError(f"{p}: point(s) {empty[:5]} have an empty label in POINT:LABELS")
-    rate_v = point.get("RATE", {}).get("value", [])
-    with open(p, "rb") as fh:
-        head = fh.read(512)
-    rate = float(rate_v[0]) if rate_v else float(struct.unpack("<f", head[20:24])[0])
-    scale_v = point.get("SCALE", {}).get("value", [])
-    point_scale = float(scale_v[0]) if scale_v else float(struct.unpack("<f", head[12:16])[0])
-    u = [str(x).strip() for x in point.get("UNITS", {}).get("value", [])]
-    if u and u[0]:
-        used, source = u[0], "file"
-    elif units is not None:
-        used, source = units, "sheet"
-    else:
-        raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
-    scale = unit_scale(used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
-    return C3DBlocks(p, layout, rate, labels, kept, point_scale, scale, used, source)
+    return labels, kept
+
+
+def c3d_labels(path) -> list[str]:
+    """The marker labels of an Intel C3D file, from its parameter section alone."""
+    p = check_readable(path)
+    layout = check_c3d_size(p)
+    if layout.processor != "Intel":
+        raise InputError(f"{p}: C3D written for a {layout.processor} processor; the block "
+                         "reader reads Intel files only (read it whole)")
+    return _marker_points(p, layout, c3d_parameters(p, layout).get("POINT", {}))[0]
+
