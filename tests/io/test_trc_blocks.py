@@ -29,11 +29,14 @@ def _read_blocks(p, block_bytes):
     return tb, pts, len(got)
 
 
-@pytest.fixture(params=["pandas", "loadtxt"])
+@pytest.fixture(params=["arrow", "loadtxt", "pandas"])
 def parser(request, monkeypatch):
-    """Both parsers of plain blocks: pandas' (narrow lines) and numpy's loadtxt (wide)."""
+    """Each parser of plain blocks: pyarrow's (narrow lines), numpy's loadtxt (wide) and
+    pandas' (the blocks these refuse)."""
     if request.param == "loadtxt":
         monkeypatch.setattr(trc_blocks, "WIDE_COLUMNS", 0)
+    if request.param == "pandas":
+        monkeypatch.setattr(trc_blocks, "_arrow", lambda c, n: None)
     return request.param
 
 
@@ -133,7 +136,8 @@ def test_plain_blocks_parse_as_python_floats(tmp_path, monkeypatch, parser, fmt)
     real = trc_blocks._parse_plain
     monkeypatch.setattr(trc_blocks, "_parse_plain",
                         lambda c, n: calls.append(1) or real(c, n))
-    fast = {"pandas": trc_blocks._pandas, "loadtxt": trc_blocks._loadtxt}[parser]
+    fast = {"pandas": trc_blocks._pandas, "loadtxt": trc_blocks._loadtxt,
+            "arrow": trc_blocks._arrow}[parser]
     took = []
     monkeypatch.setattr(trc_blocks, f"_{parser}", lambda c, n: took.append(1) or fast(c, n))
     _, pts_b, n = _read_blocks(p, 20_000)

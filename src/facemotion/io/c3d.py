@@ -362,18 +362,6 @@ def read_c3d(path, units: str | None = None) -> Recording:
     return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
 
 
-def read_c3d_labels(path) -> list[str]:
-    """The marker labels of a C3D file as :func:`read_c3d` gives them: from the parameter
-    section alone for an Intel file (:func:`facemotion.io.c3d_blocks.c3d_labels`), else from
-    the file read whole."""
-    from facemotion.io.c3d_blocks import c3d_labels
-
-    p = check_readable(path)
-    if c3d_layout(p).processor == "Intel":
-        return c3d_labels(p)
-    return read_c3d(p).labels
-
-
 def write_c3d(path, rec: Recording, flag_filled: bool = False,
               descriptions: list[str] | None = None) -> None:
     """Write the points of ``rec`` to a C3D file (mm; residual -1 where a sample is NaN).

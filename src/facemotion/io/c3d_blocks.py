@@ -208,3 +208,15 @@ def c3d_labels(path) -> list[str]:
                          "reader reads Intel files only (read it whole)")
     return _marker_points(p, layout, c3d_parameters(p, layout).get("POINT", {}))[0]
 
+
+
+def read_c3d_labels(path) -> list[str]:
+    """The marker labels of a C3D file as :func:`~facemotion.io.c3d.read_c3d` gives them: from
+    the parameter section alone for an Intel file (:func:`c3d_labels`), else from the file read
+    whole."""
+    from facemotion.io.c3d import c3d_layout, read_c3d
+
+    p = check_readable(path)
+    if c3d_layout(p).processor == "Intel":
+        return c3d_labels(p)
+    return read_c3d(p).labels
