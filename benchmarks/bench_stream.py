@@ -182,8 +182,10 @@ def worker(kind: str, path: str, fmt: str, max_gib: str) -> dict:
 
 
 #: The parsers judged on each TRC case (``--parsers``): the data section read in blocks of
-#: whole lines (the block reader's 16 MiB), each block parsed into one (lines x fields) array.
-PARSERS = ("pandas_blocks", "loadtxt_blocks", "arrow_ranges", "arrow_open")
+#: whole lines (the block reader's 16 MiB), each block parsed into one (lines x fields) array:
+#: pandas' C parser, numpy's loadtxt, pyarrow's read_csv on one thread (the block reader's
+#: three) and on every thread ("arrow_ranges"); pyarrow's open_csv streams the whole section.
+PARSERS = ("pandas_blocks", "loadtxt_blocks", "arrow_blocks", "arrow_ranges", "arrow_open")
 
 
 def parse_only(parser: str, path: str) -> int:
@@ -212,6 +214,8 @@ def parse_only(parser: str, path: str) -> int:
             values = trc_blocks._pandas(body, ncol)
         elif parser == "loadtxt_blocks":
             values = trc_blocks._loadtxt(body, ncol)
+        elif parser == "arrow_blocks":
+            values = trc_blocks._arrow(body, ncol)
         else:
             values = _arrow_block(body, ncol)
         if values is None:

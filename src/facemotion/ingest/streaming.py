@@ -15,6 +15,11 @@ holding a whole recording:
    into G (the training sentences' rows: G = sum_b A_b^T A_b, the Gram route of
    :mod:`facemotion.ranking.gram`).
 
+A load of one take without head markers (a take alone; each job of a scattered load) first
+tries one pass (:class:`OnePass`): each block, once checked, goes straight to A and G while the
+take has nothing to fix; the first block with a gap, an outlier or a step the speed screen
+flags ends it (what was written is dropped) and the take is read again the two-pass way.
+
 ``max_gib`` (the workflow's setting ``memory.max_gib``) bounds the memory: it sets the
 blocks' sizes, the log says the bound and the sizes, and a gap whose fill needs a window larger
 than the bound is an error naming it.
