@@ -318,7 +318,8 @@ def fit(max_gib: float) -> None:
 def page_table(args, load0, load1) -> str:
     lines = [f"Written by `python benchmarks/bench_stream.py --cases {' '.join(args.cases)}"
              f"{' --fit' if args.fit else ''}{' --arrow' if args.arrow else ''}"
-             f"{' --parsers' if args.parsers else ''} "
+             f"{' --parsers' if args.parsers else ''}"
+             f"{f' --reps {args.reps}' if args.reps != 1 else ''} "
              f"--page docs/performance.md` on "
              f"{time.strftime('%Y-%m-%d')}: memory.max_gib = {args.max_gib:g}, medians of "
              f"{args.reps}; load average {load0:.2f} at the start, {load1:.2f} at the end.", "",
