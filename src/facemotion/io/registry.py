@@ -41,15 +41,13 @@ class Format:
     module: str                # facemotion.io.<module>
     reader: str                # function of the module: (path, units=None) -> Recording
     suffixes: tuple[str, ...] = ()    # told by its suffix when no format is given
-    label_reader: str | None = None   # reads the labels from the header alone (else: the file);
-    #                                   "module:function" when not in ``module``
+    label_reader: str | None = None   # reads the labels from the header alone (else: the file)
     writer: str | None = None          # function of the module: (path, Recording) -> None
     units: str = ""            # where the units come from
     rate_from_times: bool = False  # the rate is a time column's (a declared rate overrides it)
 
     def _function(self, name: str) -> Callable:
-        module, _, name = name.rpartition(":")  # "module:function", else this format's module
-        return getattr(importlib.import_module(f"facemotion.io.{module or self.module}"), name)
+        return getattr(importlib.import_module(f"facemotion.io.{self.module}"), name)
 
     def read(self, path, units: str | None = None, rate: float | None = None) -> Recording:
         """The file read; ``rate`` (Hz, declared by the sheet or ``--rate``) replaces the rate
@@ -80,8 +78,7 @@ class Format:
 
 FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("c3d", "C3D, as Vicon, Qualisys, OptiTrack, Motion Analysis and others write it "
-           "(read with ezc3d)", "c3d", "read_c3d", (".c3d",), "c3d_blocks:read_c3d_labels",
-           "write_c3d",
+           "(read with ezc3d)", "c3d", "read_c3d", (".c3d",), "read_c3d_labels", "write_c3d",
            "the file's POINT:UNITS; the sheet's for a file without them"),
     Format("trc", "TRC (OpenSim, Motion Analysis)", "trc", "read_trc", (".trc",),
            "read_trc_labels", "write_trc",
