@@ -165,6 +165,8 @@ def worker(kind: str, path: str, fmt: str, max_gib: str) -> dict:
 
         c = ezc3d.c3d(path)
         res = {"frames": int(c["data"]["points"].shape[2])}
+    elif kind.startswith("parse_"):
+        res = {"mb": parse_only(kind[len("parse_"):], path) / 1e6}
     elif kind in ("arrow_read", "arrow_open"):
         from pyarrow import csv
 
@@ -177,6 +179,71 @@ def worker(kind: str, path: str, fmt: str, max_gib: str) -> dict:
     res["wall_s"] = time.perf_counter() - t0
     res["peak_rss_mib"] = vm_hwm_mib()
     return res
+
+
+#: The parsers judged on each TRC case (``--parsers``): the data section read in blocks of
+#: whole lines (the block reader's 16 MiB), each block parsed into one (lines x fields) array:
+#: pandas' C parser, numpy's loadtxt, pyarrow's read_csv on one thread (the block reader's
+#: three) and on every thread ("arrow_ranges"); pyarrow's open_csv streams the whole section.
+PARSERS = ("pandas_blocks", "loadtxt_blocks", "arrow_blocks", "arrow_ranges", "arrow_open")
+
+
+def parse_only(parser: str, path: str) -> int:
+    """Parse the data section of a TRC file by ``parser`` (no checks); the bytes parsed."""
+    from facemotion.io import trc_blocks
+
+    tb = trc_blocks.open_trc_blocks(path)
+    ncol, total = tb.ncol, 0
+    if parser == "arrow_open":
+        import pyarrow as pa
+        from pyarrow import csv
+
+        names = [f"c{i}" for i in range(ncol)]
+        opts = (csv.ReadOptions(column_names=names, use_threads=False, block_size=16 << 20),
+                csv.ParseOptions(delimiter="\t", quote_char=False),
+                csv.ConvertOptions(column_types=dict.fromkeys(names, pa.float64()),
+                                   null_values=[""]))
+        with open(path, "rb") as fh:
+            fh.seek(tb.offset)
+            for batch in csv.open_csv(fh, *opts):
+                np.column_stack([c.to_numpy(zero_copy_only=False) for c in batch.columns])
+        return os.path.getsize(path) - tb.offset
+    for chunk in trc_blocks._line_chunks(Path(path), tb.offset, trc_blocks.BLOCK_BYTES):
+        body = chunk.lstrip(b"\n")
+        if parser == "pandas_blocks":
+            values = trc_blocks._pandas(body, ncol)
+        elif parser == "loadtxt_blocks":
+            values = trc_blocks._loadtxt(body, ncol)
+        elif parser == "arrow_blocks":
+            values = trc_blocks._arrow(body, ncol)
+        else:
+            values = _arrow_block(body, ncol)
+        if values is None:
+            raise RuntimeError(f"{parser}: a block it does not take")
+        total += len(chunk)
+    return total
+
+
+def _arrow_block(chunk: bytes, ncol: int) -> np.ndarray:
+    """pyarrow's multithreaded read_csv on one byte range, as one float64 array."""
+    import pyarrow as pa
+    from pyarrow import csv
+
+    names = [f"c{i}" for i in range(ncol)]
+    table = csv.read_csv(pa.py_buffer(chunk),
+                         csv.ReadOptions(column_names=names, use_threads=True),
+                         csv.ParseOptions(delimiter="\t", quote_char=False),
+                         csv.ConvertOptions(column_types=dict.fromkeys(names, pa.float64()),
+                                            null_values=[""]))
+    return np.column_stack([c.to_numpy() for c in table.columns])
+
+
+def _parsers(name: str, path: Path, reps: int) -> None:
+    """MB/s of each parser on the file's data section (median of ``reps`` child runs)."""
+    for parser in PARSERS:
+        runs = [child(f"parse_{parser}", path, "trc", 1.0) for _ in range(reps)]
+        mbs = float(np.median([r["mb"] / r["wall_s"] for r in runs]))
+        row(name, f"parser_{parser}", mbs, "MB/s", "parse only, same file; startup included")
 
 
 def _baselines(fmt: str, huge: bool, size: int, arrow: bool) -> list[str]:
@@ -196,7 +263,8 @@ def _baselines(fmt: str, huge: bool, size: int, arrow: bool) -> list[str]:
     return out
 
 
-def run_case(name: str, max_gib: float, reps: int, huge_baseline: bool, arrow: bool) -> None:
+def run_case(name: str, max_gib: float, reps: int, huge_baseline: bool, arrow: bool,
+             parsers: bool = False) -> None:
     fmt, n, frames = CASES[name]
     OUT.mkdir(parents=True, exist_ok=True)
     path = write_take(OUT / f"{name}.{fmt}", fmt, n, frames)
@@ -223,6 +291,8 @@ def run_case(name: str, max_gib: float, reps: int, huge_baseline: bool, arrow: b
         ratio = ours["wall_s"] / w
         row(name, f"ours_over_{k}", ratio, "x", "time",
             target and f"<={target:g}", None if target is None else ratio <= target)
+    if parsers and fmt == "trc":
+        _parsers(name, path, reps)
 
 
 def fit(max_gib: float) -> None:
@@ -247,7 +317,9 @@ def fit(max_gib: float) -> None:
 
 def page_table(args, load0, load1) -> str:
     lines = [f"Written by `python benchmarks/bench_stream.py --cases {' '.join(args.cases)}"
-             f"{' --fit' if args.fit else ''}{' --arrow' if args.arrow else ''} "
+             f"{' --fit' if args.fit else ''}{' --arrow' if args.arrow else ''}"
+             f"{' --parsers' if args.parsers else ''}"
+             f"{f' --reps {args.reps}' if args.reps != 1 else ''} "
              f"--page docs/performance.md` on "
              f"{time.strftime('%Y-%m-%d')}: memory.max_gib = {args.max_gib:g}, medians of "
              f"{args.reps}; load average {load0:.2f} at the start, {load1:.2f} at the end.", "",
@@ -275,11 +347,13 @@ def main(argv=None) -> int:
                     help="trc10g: also pandas.read_csv (about 13 GiB)")
     ap.add_argument("--arrow", action="store_true",
                     help="also pyarrow's read_csv and open_csv (when installed)")
+    ap.add_argument("--parsers", action="store_true",
+                    help="TRC cases: also the MB/s of each parser judged (PARSERS)")
     ap.add_argument("--page")
     args = ap.parse_args(argv)
     load0 = os.getloadavg()[0]
     for name in args.cases:
-        run_case(name, args.max_gib, args.reps, args.huge_baseline, args.arrow)
+        run_case(name, args.max_gib, args.reps, args.huge_baseline, args.arrow, args.parsers)
     if args.fit:
         fit(args.max_gib)
     if args.page:

@@ -4,6 +4,8 @@
 #
 #   bash tests/cluster/run_slurm_smoke.sh          # the study's smoke workflow (config/smoke.yaml)
 #   bash tests/cluster/run_slurm_smoke.sh --mini   # tests/cluster/mini: SLURM plumbing only
+#   bash tests/cluster/run_slurm_smoke.sh --stream # a small dense study's `stream` target
+#                                                  # (config/stream_smoke.yaml): one job per take
 #
 # Exit codes: 0 pass; 1 outputs differ (or a check on the SLURM jobs failed); 2 the SLURM run
 # failed; 3 the local reference run failed; 64 bad usage; 77 skipped, this machine cannot host
@@ -27,8 +29,9 @@ MODE=smoke
 case "${1:-}" in
   "") ;;
   --mini) MODE=mini ;;
-  -h | --help) sed -n '2,15p' "${BASH_SOURCE[0]}"; exit 0 ;;
-  *) echo "usage: $0 [--mini]" >&2; exit "$EXIT_USAGE" ;;
+  --stream) MODE=stream ;;
+  -h | --help) sed -n '2,17p' "${BASH_SOURCE[0]}"; exit 0 ;;
+  *) echo "usage: $0 [--mini | --stream]" >&2; exit "$EXIT_USAGE" ;;
 esac
 if [[ $MODE == mini ]]; then
   SNAKEFILE="$HERE/mini/Snakefile"
@@ -37,8 +40,14 @@ else
   SNAKEFILE="$ROOT/Snakefile"
   CONFIG_ARGS=(--configfile "$ROOT/config/smoke.yaml")
 fi
+CONFIG_NAME=smoke.yaml
+DEFAULT_TARGETS=""
+if [[ $MODE == stream ]]; then
+  CONFIG_NAME=stream_smoke.yaml
+  DEFAULT_TARGETS=stream
+fi
 
-read -r -a TARGETS <<<"${SLURM_SMOKE_TARGETS:-}" # given last: --configfile takes 1+ values
+read -r -a TARGETS <<<"${SLURM_SMOKE_TARGETS:-$DEFAULT_TARGETS}" # given last: --configfile takes 1+ values
 
 T0=$(date +%s)
 log() { printf '[slurm-smoke %4ds] %s\n' "$(($(date +%s) - T0))" "$*"; }
@@ -278,7 +287,7 @@ log "srun test job ran on: $out"
 # the two runs differ. PYTHONPATH puts the snapshot's package ahead of the editable install
 # (sbatch --export=ALL passes it to the jobs). Outside a git checkout the provenance sidecars
 # record commit "unknown" in both runs. The profile under test is the repository's.
-if [[ $MODE == smoke ]]; then
+if [[ $MODE != mini ]]; then
   SNAP="$TMP/snapshot/$(basename "$ROOT")"
   mkdir -p "$SNAP"
   tar -C "$ROOT" --exclude=./.venv --exclude=./.git --exclude=./results --exclude=./.snakemake \
@@ -288,7 +297,7 @@ if [[ $MODE == smoke ]]; then
   # the real data live beside the project root (../shared/data)
   [[ -e $ROOT/../shared ]] && ln -s "$(cd "$ROOT/../shared" && pwd)" "$TMP/snapshot/shared"
   SNAKEFILE="$SNAP/Snakefile"
-  CONFIG_ARGS=(--configfile "$SNAP/config/smoke.yaml")
+  CONFIG_ARGS=(--configfile "$SNAP/config/$CONFIG_NAME")
   export PYTHONPATH="$SNAP/src${PYTHONPATH:+:$PYTHONPATH}"
   log "code snapshot in $SNAP"
 fi

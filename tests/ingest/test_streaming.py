@@ -168,3 +168,71 @@ def test_a_scattered_load_gathers_the_single_jobs_gram_and_pivots(takes):
                                       A[rows[i]:rows[i + 1]])
     with pytest.raises(InputError, match="no training take"):
         scatter.gather_gram([s.gram for s in parts], ["heldout"] * 3)
+
+
+def test_one_take_without_head_markers_loads_in_one_pass(tmp_path, monkeypatch, caplog):
+    """A take with nothing to fix goes to A and G while it is read; one with a gap after a
+    few blocks is read again, in two passes. Either way A is the two-pass route's, digit for
+    digit, G and the r values within round-off, the same pivots; and both are the whole-take
+    load's. Nothing is left beside the output."""
+    from facemotion.ingest import streaming
+
+    kw = dict(train=[0], heldout=[], units="mm", neutral="mean_first_10")
+    for name, gaps in (("clean", False), ("gapped", True)):
+        rec = _take(3, 2500, False)
+        if gaps:
+            rec.points[2000:2003, 7] = np.nan
+        p = tmp_path / f"{name}.trc"
+        write_trc(p, rec)
+        caplog.clear()
+        with caplog.at_level("INFO", logger="facemotion"):
+            s1 = stream_dataset([str(p)], "trc", tmp_path / f"{name}1.npz", **kw,
+                                max_gib=0.004)
+        said = caplog.text
+        assert ("read again, in two passes" in said) == gaps
+        assert "in one pass while it has nothing to fix" in said
+        with monkeypatch.context() as m:
+            m.setattr(streaming, "_one_pass", lambda *a, **k: None)
+            s2 = stream_dataset([str(p)], "trc", tmp_path / f"{name}2.npz", **kw,
+                                max_gib=0.004)
+        whole = load_dataset([str(p)], "trc", **kw)
+        A1 = load_displacements(tmp_path / f"{name}1.npz")
+        A2 = load_displacements(tmp_path / f"{name}2.npz")
+        for field in ("A", "fill_mask", "neutral", "row_frame", "head_residual"):
+            np.testing.assert_array_equal(getattr(A1, field), getattr(A2, field))
+        np.testing.assert_allclose(A1.A, whole.displacements.A, rtol=0,
+                                   atol=FILL_RTOL * np.abs(A1.A).max())
+        pd.testing.assert_frame_equal(s1.gap_report, s2.gap_report)
+        pd.testing.assert_frame_equal(s1.sentences, s2.sentences)
+        np.testing.assert_allclose(s1.gram, s2.gram, rtol=0, atol=1e-13 * np.abs(s2.gram).max())
+        r1, r2 = (rank_from_gram(s.gram, s.train_rows, s.labels) for s in (s1, s2))
+        assert list(r1.order) == list(r2.order)
+        np.testing.assert_allclose(r1.r, r2.r, rtol=1e-9)
+    assert sorted(x.name for x in tmp_path.iterdir()) == sorted(
+        [f"{n}{i}.npz" for n in ("clean", "gapped") for i in (1, 2)] + ["clean.trc",
+                                                                        "gapped.trc"])
+
+
+def test_c3d_takes_stream_in_blocks_as_the_whole_take_load(tmp_path, monkeypatch):
+    """C3D (Intel, float storage) through the block reader: the whole-take load's A to the
+    fill tolerance, the same pivots; no take is read whole."""
+    from facemotion.ingest import stream_scan
+    from facemotion.io.c3d import write_c3d
+
+    paths = []
+    for i, (frames, gaps) in enumerate(((1500, True), (700, False))):
+        p = tmp_path / f"take{i}.c3d"
+        write_c3d(p, _take(10 + i, frames, gaps))
+        paths.append(str(p))
+    monkeypatch.setattr(stream_scan, "WholeTake", None)  # a whole read would fail here
+    kw = {**KW, "train": [0], "heldout": [1]}
+    whole = load_dataset(paths, "c3d", **kw)
+    s = stream_dataset(paths, "c3d", tmp_path / "A.npz", **kw, max_gib=MAX_GIB)
+    A, D = whole.displacements.A, load_displacements(tmp_path / "A.npz")
+    np.testing.assert_allclose(D.A, A, rtol=0, atol=FILL_RTOL * np.abs(A).max())
+    np.testing.assert_array_equal(D.fill_mask, whole.displacements.fill_mask)
+    tr = whole.train.A
+    r_whole = rank_from_gram(tr.T @ tr, tr.shape[0], whole.displacements.labels)
+    r_stream = rank_from_gram(s.gram, s.train_rows, s.labels)
+    assert list(r_stream.order) == list(r_whole.order)
+    np.testing.assert_allclose(r_stream.r, r_whole.r, rtol=1e-9)

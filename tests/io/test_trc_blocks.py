@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from facemotion.errors import InputError
+from facemotion.io import base, trc_blocks
 from facemotion.io.recording import Recording
 from facemotion.io.trc import read_trc, write_trc
 from facemotion.io.trc_blocks import open_trc_blocks
@@ -28,8 +29,19 @@ def _read_blocks(p, block_bytes):
     return tb, pts, len(got)
 
 
+@pytest.fixture(params=["arrow", "loadtxt", "pandas"])
+def parser(request, monkeypatch):
+    """Each parser of plain blocks: pyarrow's (narrow lines), numpy's loadtxt (wide) and
+    pandas' (the blocks these refuse)."""
+    if request.param == "loadtxt":
+        monkeypatch.setattr(trc_blocks, "WIDE_COLUMNS", 0)
+    if request.param == "pandas":
+        monkeypatch.setattr(trc_blocks, "_arrow", lambda c, n: None)
+    return request.param
+
+
 @pytest.mark.parametrize("block_bytes", [200, 997, 4096, 10**7])
-def test_blocks_give_the_whole_file_reading(tmp_path, block_bytes):
+def test_blocks_give_the_whole_file_reading(tmp_path, block_bytes, parser):
     p = _file(tmp_path)
     rec = read_trc(p)
     tb, pts, n = _read_blocks(p, block_bytes)
@@ -61,7 +73,7 @@ CASES = {
 
 @pytest.mark.parametrize("case", sorted(CASES))
 @pytest.mark.parametrize("block_bytes", [300, 10**7])
-def test_the_strict_checks_run_in_block_mode(tmp_path, case, block_bytes):
+def test_the_strict_checks_run_in_block_mode(tmp_path, case, block_bytes, parser):
     p = _file(tmp_path)
     line, fn = CASES[case]
     _edit(p, line, fn)
@@ -102,3 +114,36 @@ def test_counts_and_the_last_line_end(tmp_path):
     p.write_text(text.rstrip("\n"))
     with pytest.raises(InputError, match="the last one, has no line end"):
         _read_blocks(p, 500)
+
+
+@pytest.mark.parametrize("fmt", ["%.6f", "%.17g"])
+def test_plain_blocks_parse_as_python_floats(tmp_path, monkeypatch, parser, fmt):
+    """Blocks without gaps go through the fast parser (counted) and give the numbers of the
+    exact line-by-line reader (Python's float), digit for digit, at the writers' 6 decimals
+    and at full precision."""
+    rng = np.random.default_rng(7)
+    pts = rng.normal(0, 60, (400, 20, 3)) * 10.0 ** rng.integers(-3, 3, (400, 20, 3))
+    p = tmp_path / "plain.trc"
+    write_trc(p, Recording([f"M{j}" for j in range(20)], pts, 100.0))
+    lines = _lines(p)
+    for i in range(6, len(lines)):
+        f = lines[i].rstrip("\n").split("\t")
+        lines[i] = "\t".join(f[:2] + [fmt % v for v in pts[i - 6].ravel()]) + "\n"
+    p.write_text("".join(lines))
+    monkeypatch.setattr(base, "FAST_TEXT", False)
+    exact = read_trc(p).points
+    calls = []
+    real = trc_blocks._parse_plain
+    monkeypatch.setattr(trc_blocks, "_parse_plain",
+                        lambda c, n: calls.append(1) or real(c, n))
+    fast = {"pandas": trc_blocks._pandas, "loadtxt": trc_blocks._loadtxt,
+            "arrow": trc_blocks._arrow}[parser]
+    took = []
+    monkeypatch.setattr(trc_blocks, f"_{parser}", lambda c, n: took.append(1) or fast(c, n))
+    _, pts_b, n = _read_blocks(p, 20_000)
+    assert n > 3 and len(calls) == n and len(took) == n
+    if fmt == "%.6f":
+        np.testing.assert_array_equal(pts_b, exact)
+    else:  # the 17-digit strings are Python's own: parsing gives the very same floats
+        np.testing.assert_array_equal(exact, pts)
+        np.testing.assert_array_equal(pts_b if parser == "loadtxt" else exact, pts)

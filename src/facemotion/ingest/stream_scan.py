@@ -21,6 +21,7 @@ blocks is kept per take, never the points themselves:
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,11 +70,20 @@ class WholeTake:
 
 
 def take_blocks(path, fmt: str, units: str | None = None, subject_prefix: str | None = None):
-    """The take's header and a ``blocks(block_bytes)`` iterator of (first frame, points)."""
+    """The take's header and a ``blocks(block_bytes)`` iterator of (first frame, points):
+    the block readers of TRC (:mod:`facemotion.io.trc_blocks`) and of Intel C3D
+    (:mod:`facemotion.io.c3d_blocks`), else the take read whole (:class:`WholeTake`)."""
     if fmt == "trc" and not subject_prefix:
         from facemotion.io.trc_blocks import open_trc_blocks
 
         return open_trc_blocks(path, units)
+    if fmt == "c3d" and not subject_prefix:
+        from facemotion.io.base import check_readable
+        from facemotion.io.c3d import c3d_layout
+        from facemotion.io.c3d_blocks import open_c3d_blocks
+
+        if c3d_layout(check_readable(path)).processor == "Intel":
+            return open_c3d_blocks(path, units)
     return WholeTake(path, fmt, units, subject_prefix)
 
 
@@ -134,8 +144,10 @@ class _Running:
     any_ok: bool = False
     cut: np.ndarray = None
     far_max: np.ndarray = None
+    step2_max: float = 0.0
 
     def __post_init__(self):
+        self.step2_max = (self.vmax / self.rate) ** 2 * (1.0 - 1e-9)
         self.last_x = np.full((self.n, 3), np.nan)
         self.last_f = np.full(self.n, -1, dtype=np.int64)
         self.first = np.full((self.n, 3), np.nan)
@@ -144,12 +156,15 @@ class _Running:
 
 
 def _steps_full(x: np.ndarray, cols: np.ndarray, a: int, st: _Running) -> None:
-    """The speed cuts of markers ``cols`` valid in every frame of the block (x: their points),
-    vectorised: consecutive frames, and the link to each one's last valid sample before."""
+    """The speed screen of markers ``cols`` valid in every frame of the block (x: their
+    points), vectorised: consecutive frames, and the link to each one's last valid sample
+    before. A screen: a marker it flags gets the exact whole-take test after the pass
+    (:func:`_fast_outliers`), so squared steps are compared with a bound a little under
+    (max_speed / rate)^2, which no step at the limit passes by a rounding."""
     with np.errstate(invalid="ignore", over="ignore"):
-        d = np.diff(x, axis=0)
-        speed = np.sqrt(np.einsum("fnc,fnc->fn", d, d)) * st.rate
-        st.cut[cols] |= np.any(~(speed <= st.vmax), axis=0)
+        d = x[1:] - x[:-1]
+        step2 = np.einsum("fnc,fnc->fn", d, d)
+        st.cut[cols] |= np.any(~(step2 <= st.step2_max), axis=0)
         seen = st.last_f[cols] >= 0
         if seen.any():
             c = cols[seen]
@@ -162,17 +177,21 @@ def _steps_full(x: np.ndarray, cols: np.ndarray, a: int, st: _Running) -> None:
 def _block_checks(blk: np.ndarray, a: int, st: _Running, limits: Limits):
     """One block: (far (b, n) bool, per-frame median distance (b,) NaN where < 3 markers,
     missing (b, n)); updates the carried state (speed cuts, first positions, moves)."""
-    dist, enough = centre_distances(SimpleNamespace(points=blk))
+    ok = finite_samples(blk)
+    dist, enough = centre_distances(SimpleNamespace(points=blk), ok)
     med = np.full(len(blk), np.nan)
-    if enough.any():
+    if enough.all():
+        med = _median_markers(dist)[:, 0]
+    elif enough.any():
         med[enough] = _median_markers(dist[enough])[:, 0]
-    d0 = np.nan_to_num(dist, nan=0.0)
+    d0 = dist if enough.all() and ok.all() else np.nan_to_num(dist, nan=0.0)
     far = d0 > limits.max_distance_mm
     st.far_max = np.maximum(st.far_max, d0.max(axis=0))
-    ok = finite_samples(blk)
     valid = ok & ~far
     full = valid.all(axis=0)
-    if full.any():
+    if full.all():
+        _steps_full(blk, np.arange(st.n), a, st)
+    elif full.any():
         _steps_full(blk[:, full], np.flatnonzero(full), a, st)
     for j in np.flatnonzero(valid.any(axis=0) & ~full):
         idx = np.flatnonzero(valid[:, j])
@@ -217,12 +236,40 @@ def _fast_outliers(columns: np.ndarray, cut: np.ndarray, far: np.ndarray, missin
     return fast, top
 
 
+def _read_pass(src, cols, st: _Running, limits: Limits, block_bytes: int, scratch,
+               one_pass):
+    """The blocks read and checked: (far, per-frame median distance, missing), each block's
+    numbers appended to ``scratch``; or, with ``one_pass``, given to it instead, and None as
+    soon as it declines one (nothing more is read)."""
+    F, n = src.n_frames, st.n
+    far = np.zeros((F, n), dtype=bool)
+    missing = np.zeros((F, n), dtype=bool)
+    med = np.full(F, np.nan)
+    with open(scratch, "wb") if one_pass is None else contextlib.nullcontext() as out:
+        for a, blk in src.blocks(block_bytes):
+            if cols is not None:
+                blk = np.ascontiguousarray(blk[:, cols])
+            b = a + len(blk)
+            far[a:b], med[a:b], missing[a:b] = _block_checks(blk, a, st, limits)
+            if one_pass is None:
+                out.write(blk.reshape(-1).view(np.uint8))
+            elif not one_pass.add(blk, a, F, far[a:b].any() or missing[a:b].any()
+                                  or st.cut.any()):
+                return None
+    return far, med, missing
+
+
 def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
               units: str | None = None, subject_prefix: str | None = None,
               head_markers: list[str] = (), role: str = "",
-              block_bytes: int = 32 * 2**20) -> TakeScan:
+              block_bytes: int = 32 * 2**20, one_pass=None) -> TakeScan | None:
     """Pass 1 of one take: read in blocks, every check of ``check_take`` on the markers
-    ``used``, the raw numbers appended to ``scratch`` (see the module notes)."""
+    ``used``, the raw numbers appended to ``scratch`` (see the module notes).
+
+    ``one_pass`` (:class:`facemotion.ingest.streaming.OnePass`): no scratch file; every
+    block goes to ``one_pass.add`` while the take has no missing sample, no outlier and no
+    step the speed screen flags. None when it declines a block: the take needs the two
+    passes (the caller reads it again with a scratch file)."""
     src = take_blocks(path, fmt, units, subject_prefix)
     where = str(src.path)
     rec = SimpleNamespace(source=where, rate=src.rate, n_frames=src.n_frames, units=src.units,
@@ -233,34 +280,33 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
                     "used", where, src.units, units)
     check_take_length(rec, limits, role)
     check_rate(rec, limits)
-    missing_labels = [m for m in used if m not in src.labels]
+    have = set(src.labels)
+    missing_labels = [m for m in used if m not in have]
     if missing_labels:
         raise InputError(f"{where}: marker {missing_labels[0]!r} is not in the data")
-    cols = np.array([src.labels.index(m) for m in used])
+    at = {m: i for i, m in enumerate(src.labels)}
+    cols = np.array([at[m] for m in used])
     whole = np.array_equal(cols, np.arange(len(src.labels)))  # every marker: no copy
     F, n = src.n_frames, len(used)
-    far = np.zeros((F, n), dtype=bool)
-    missing = np.zeros((F, n), dtype=bool)
-    med = np.full(F, np.nan)
     st = _Running(n, limits.max_speed_mm_s, src.rate)
-    with open(scratch, "wb") as out:
-        for a, blk in src.blocks(block_bytes):
-            if not whole:
-                blk = np.ascontiguousarray(blk[:, cols])
-            b = a + len(blk)
-            far[a:b], med[a:b], missing[a:b] = _block_checks(blk, a, st, limits)
-            out.write(blk.reshape(-1).view(np.uint8))
+    got = _read_pass(src, None if whole else cols, st, limits, block_bytes, scratch, one_pass)
+    if got is None:
+        return None
+    far, med, missing = got
     step = max(1, block_bytes // (24 * n))
     cut = np.flatnonzero(st.cut)
-    fast, top = _fast_outliers(read_columns(scratch, n, F, cut, step), cut, far, missing,
-                               src.rate, limits.max_speed_mm_s)
-    outliers = far | fast
+    if cut.size:
+        fast, top = _fast_outliers(read_columns(scratch, n, F, cut, step), cut, far, missing,
+                                   src.rate, limits.max_speed_mm_s)
+        outliers = far | fast
+    else:  # no step the screen flags: no sample is too fast (zeros, never written)
+        fast, top, outliers = np.zeros((F, n), dtype=bool), np.zeros(n), far
     spread = _check_spread(med, rec, limits)
     if st.any_ok and not st.moved:
         raise InputError(f"{where}: no marker moves in this take (every sample equals the "
                          "marker's first): a frozen or placeholder take")
     notes = outlier_notes(outliers, far, fast, st.far_max, top, used, src.rate, limits)
-    measured = int((~missing).sum())
+    measured = missing.size - int(np.count_nonzero(missing))
     if measured and outliers.sum() > MAX_OUTLIER_FRACTION * measured:
         raise InputError(f"{where}: {outliers.sum()} of the take's {measured} measured samples "
                          f"are outliers (more than {MAX_OUTLIER_FRACTION:.0%}; first: "

@@ -15,16 +15,23 @@ holding a whole recording:
    into G (the training sentences' rows: G = sum_b A_b^T A_b, the Gram route of
    :mod:`facemotion.ranking.gram`).
 
+A load of one take without head markers (a take alone; each job of a scattered load) first
+tries one pass (:class:`OnePass`): each block, once checked, goes straight to A and G while the
+take has nothing to fix; the first block with a gap, an outlier or a step the speed screen
+flags ends it (what was written is dropped) and the take is read again the two-pass way.
+
 ``max_gib`` (the workflow's setting ``memory.max_gib``) bounds the memory: it sets the
 blocks' sizes, the log says the bound and the sizes, and a gap whose fill needs a window larger
 than the bound is an error naming it.
 Not streamed (an InputError says so): sentences cut from takes (``segments``) and
-``copy_markers`` (their offsets are medians over every take), and readers without a block
-reader (formats other than TRC, and TRC with a subject prefix: read whole, then blocked).
+``copy_markers`` (their offsets are medians over every take). Readers without a block reader
+(formats other than TRC and Intel C3D, and files with a subject prefix) read the take whole,
+then give it in blocks.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import shutil
 import tempfile
@@ -33,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from threadpoolctl import threadpool_limits
 
 from facemotion.errors import InputError
 from facemotion.ingest.gap_windows import GapPlan, fill_window, plan_gaps
@@ -43,6 +51,10 @@ log = logging.getLogger("facemotion")
 
 #: The default memory bound (GiB) of a streamed load.
 MAX_GIB = 1.0
+#: Below this many markers the Gram's BLAS runs on one thread: each block's G += B^T B is
+#: then small, and a second thread mostly spins between blocks (measured: a third more CPU
+#: time for 468 markers, no gain in wall time).
+BLAS_ONE_THREAD_BELOW = 2000
 #: Copies of a window's points alive at once in the second pass (points, aligned, filled,
 #: displacements, their transposes): the bound is shared out by this.
 WINDOW_COPIES = 10
@@ -77,7 +89,7 @@ class Budget:
         if not np.isfinite(max_gib) or max_gib <= 0:
             raise InputError(f"max_gib: must be positive, got {max_gib!r}")
         total = max_gib * 2**30
-        text = int(min(64 * 2**20, max(2**20, total / 24)))
+        text = int(min(16 * 2**20, max(2**20, total / 24)))
         per_frame = 24 * max(n_used, 1) * WINDOW_COPIES
         window = int(0.5 * total / per_frame)
         frames = max(16, min(window // 4, 8192))
@@ -193,11 +205,54 @@ def same_shape(scans: list[TakeScan], limits: Limits, budget: Budget,
     return out
 
 
-def _gram_add(G: np.ndarray, block: np.ndarray) -> np.ndarray:
-    """G += block^T block in place on G's upper triangle (BLAS dsyrk, no n x n temporary)."""
+def _gram_add(G: np.ndarray, rows_t: np.ndarray) -> np.ndarray:
+    """G += B^T B in place on G's upper triangle (BLAS dsyrk, no n x n temporary), from
+    ``rows_t`` = B^T (markers, rows), C-ordered: B in Fortran order, the layout in which
+    dsyrk's B^T B form runs fastest."""
     from scipy.linalg.blas import dsyrk
 
-    return dsyrk(1.0, block.T, beta=1.0, c=G, trans=0, lower=0, overwrite_c=1)
+    return dsyrk(1.0, rows_t.T, beta=1.0, c=G, trans=1, lower=0, overwrite_c=1)
+
+
+class OnePass:
+    """A take turned into displacements and added into G while it is read (its first pass),
+    for a load of one take without head markers: right while the take has nothing to fix
+    (no missing sample, no outlier, no step the speed screen flags), the rows, their order
+    and their arithmetic those of :func:`stream_take`. :meth:`add` declines the first block
+    that has something to fix; the caller then drops what was written and loads the take the
+    two-pass way."""
+
+    def __init__(self, out, labels: list[str], train: bool, neutral: str):
+        self.out, self.labels, self.train, self.neutral = out, labels, train, neutral
+        self.writer = None
+        self.G = None
+        self.n0 = None
+
+    def add(self, blk: np.ndarray, a: int, n_frames: int, to_fix: bool) -> bool:
+        """Block ``blk`` (frames from ``a``, markers as ``labels``) into A and G; False (and
+        nothing kept) when it has something to fix."""
+        if to_fix or (self.n0 is None and self.neutral != "first_frame" and len(blk) < 10
+                      and a + len(blk) < n_frames):
+            self.abort()
+            return False
+        if self.writer is None:
+            from facemotion.ingest.displacement_file import DisplacementsWriter
+
+            n = len(self.labels)
+            self.writer = DisplacementsWriter(self.out, self.labels, 3 * n_frames)
+            self.G = np.zeros((n, n), order="F") if self.train else None
+            head = np.ascontiguousarray(blk[:10])  # the layout stream_take averages
+            self.n0 = head[0].copy() if self.neutral == "first_frame" else head.mean(axis=0)
+        rows_t = (blk.transpose(1, 0, 2) - self.n0[:, None, :]).reshape(len(self.labels), -1)
+        self.writer.write_rows(rows_t.T)
+        if self.G is not None:
+            self.G = _gram_add(self.G, rows_t)
+        return True
+
+    def abort(self) -> None:
+        if self.writer is not None:
+            self.writer.abort()
+        self.writer = self.G = self.n0 = None
 
 
 def stream_take(scan: TakeScan, keep: list[str], plan: GapPlan, writer, G, budget: Budget,
@@ -207,7 +262,8 @@ def stream_take(scan: TakeScan, keep: list[str], plan: GapPlan, writer, G, budge
     from facemotion.ingest.head_motion import align_head
     from facemotion.io.recording import Recording
 
-    cols = [scan.labels.index(m) for m in keep]
+    where = {m: i for i, m in enumerate(scan.labels)}
+    cols = [where[m] for m in keep]
     n0 = None
     for a in range(0, scan.n_frames, budget.frames):
         b = min(scan.n_frames, a + budget.frames)
@@ -224,10 +280,12 @@ def stream_take(scan: TakeScan, keep: list[str], plan: GapPlan, writer, G, budge
         filled = fill_window(pts[:, cols], lo, a, b, plan, scan.rate, keep, scan.source)
         if n0 is None:
             n0 = filled[0].copy() if neutral == "first_frame" else filled[:10].mean(axis=0)
-        block = (filled.transpose(0, 2, 1) - n0.T[None]).reshape(3 * (b - a), len(keep))
-        writer.write_rows(block)
+        # A's rows of these frames, transposed: (markers, frames x (x, y, z)), C-ordered
+        rows_t = (filled.transpose(1, 0, 2) - n0[:, None, :]).reshape(len(keep), 3 * (b - a))
+        del pts, filled
+        writer.write_rows(rows_t.T)
         if G is not None:
-            G = _gram_add(G, block)
+            G = _gram_add(G, rows_t)
     return n0, G
 
 
@@ -265,24 +323,74 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
     out.parent.mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        scans = []
-        for i, (seg, role) in enumerate(zip(chosen, roles, strict=True)):
-            log.info("reading %s (%d/%d, in blocks)", seg.take, i + 1, len(chosen))
-            scans.append(scan_take(seg.take, fmt, used, limits, scratch / f"take{i}.f8",
-                                   units=units, subject_prefix=subject_prefix,
-                                   head_markers=list(head_markers), role=role,
-                                   block_bytes=budget.text_bytes))
-        return _second_pass(scans, chosen, roles, keep, used, out, budget, limits,
-                            head_markers=list(head_markers), where=where, neutral=neutral,
-                            max_interp_s=max_interp_s, long_gaps=long_gaps,
-                            reference=head_reference)
+        threads = threadpool_limits(1, user_api="blas") if len(keep) < BLAS_ONE_THREAD_BELOW \
+            else contextlib.nullcontext()
+        with threads:
+            return _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits,
+                         units=units, subject_prefix=subject_prefix, neutral=neutral,
+                         head_markers=list(head_markers), where=where,
+                         max_interp_s=max_interp_s, long_gaps=long_gaps,
+                         head_reference=head_reference)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
 
+def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units,
+          subject_prefix, neutral, head_markers, where, max_interp_s, long_gaps,
+          head_reference) -> StreamedDataset:
+    """Every take's first pass (or its one pass), then the second."""
+    one = _one_pass(chosen[0].take, fmt, used, keep, out, scratch / "take0.f8", roles[0],
+                    budget, limits, units=units, subject_prefix=subject_prefix,
+                    neutral=neutral, head_markers=list(head_markers)
+                    ) if len(chosen) == 1 else None
+    if one is not None:
+        try:
+            return _second_pass([one[0]], chosen, roles, keep, used, out, budget, limits,
+                                head_markers=[], where=where, neutral=neutral,
+                                max_interp_s=max_interp_s, long_gaps=long_gaps,
+                                one_pass=one[1])
+        except BaseException:
+            one[1].abort()
+            raise
+    scans = []
+    for i, (seg, role) in enumerate(zip(chosen, roles, strict=True)):
+        log.info("reading %s (%d/%d, in blocks)", seg.take, i + 1, len(chosen))
+        scans.append(scan_take(seg.take, fmt, used, limits, scratch / f"take{i}.f8",
+                               units=units, subject_prefix=subject_prefix,
+                               head_markers=list(head_markers), role=role,
+                               block_bytes=budget.text_bytes))
+    return _second_pass(scans, chosen, roles, keep, used, out, budget, limits,
+                        head_markers=list(head_markers), where=where, neutral=neutral,
+                        max_interp_s=max_interp_s, long_gaps=long_gaps,
+                        reference=head_reference)
+
+
+def _one_pass(take, fmt, used, keep, out, scratch, role, budget, limits, *, units,
+              subject_prefix, neutral, head_markers):
+    """(the scan, its :class:`OnePass`) when the one take loads in one pass, or None (head
+    markers to align, or something to fix: logged)."""
+    if head_markers or keep != used:
+        return None
+    log.info("reading %s (1/1, in blocks, in one pass while it has nothing to fix)", take)
+    one = OnePass(out, keep, role == "train", neutral)
+    try:
+        scan = scan_take(take, fmt, used, limits, scratch, units=units,
+                         subject_prefix=subject_prefix, role=role,
+                         block_bytes=budget.text_bytes, one_pass=one)
+    except BaseException:
+        one.abort()
+        raise
+    if scan is None:
+        log.info("%s: a gap, an outlier or a fast step: read again, in two passes", take)
+        return None
+    return scan, one
+
+
 def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_markers,
-                 where, neutral, max_interp_s, long_gaps, reference=None) -> StreamedDataset:
-    """Checks across takes, the head reference, then every take to A and G."""
+                 where, neutral, max_interp_s, long_gaps, reference=None,
+                 one_pass: OnePass | None = None) -> StreamedDataset:
+    """Checks across takes, the head reference, then every take to A and G (``one_pass``:
+    the one take's A and G, made while it was read)."""
     from types import SimpleNamespace
 
     from facemotion.ingest.displacement_file import DisplacementsWriter
@@ -301,32 +409,41 @@ def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_
     dropped = [m for m in used if m not in set(keep)]
     log.info("analysing %d of %d markers%s", len(keep), len(used),
              f"; left out: {', '.join(dropped)}" if dropped else "")
-    cols = [used.index(m) for m in keep]
+    where_used = {m: i for i, m in enumerate(used)}
+    cols = [where_used[m] for m in keep]
+    if cols == list(range(len(used))):
+        cols = slice(None)  # every marker used is analysed: views, not copies
     n = len(keep)
     G = np.zeros((n, n), order="F")
-    writer = DisplacementsWriter(out, keep, 3 * sum(s.n_frames for s in scans))
+    if one_pass is not None:
+        writer, G = one_pass.writer, G if one_pass.G is None else one_pass.G
+    else:
+        writer = DisplacementsWriter(out, keep, 3 * sum(s.n_frames for s in scans))
     neutrals, missing, reports = [], [], []
     try:
         for s, role in zip(scans, roles, strict=True):
-            miss = (s.missing | s.outliers)[:, cols]
+            miss = (s.missing | s.outliers if s.outliers.any() else s.missing)[:, cols]
             plan = plan_gaps(miss, s.rate, max_interp_s, long_gaps, keep, s.source)
-            n0, g = stream_take(s, keep, plan, writer, G if role == "train" else None, budget,
-                                neutral=neutral, head_markers=head_markers,
-                                reference=reference)
+            if one_pass is not None:
+                n0, g = one_pass.n0, None
+            else:
+                n0, g = stream_take(s, keep, plan, writer, G if role == "train" else None,
+                                    budget, neutral=neutral, head_markers=head_markers,
+                                    reference=reference)
             G = G if g is None else g
             neutrals.append(n0)
             missing.append(miss)
             methods = ["+".join(m for m, u in (("cubic", c), ("pca", p)) if u) or "none"
                        for c, p in zip(plan.cubic, plan.pca, strict=True)]
-            rec = SimpleNamespace(filled=np.zeros_like(miss), labels=keep, n_markers=n,
+            rec = SimpleNamespace(filled=miss, labels=keep, n_markers=n,
                                   n_frames=s.n_frames)
-            reports.append(gap_report(rec, filled_by_us=miss, methods=methods, missing=miss))
+            reports.append(gap_report(rec, methods=methods, missing=miss))
         sn = np.stack(neutrals)
         F = [s.n_frames for s in scans]
         writer.close(sentences=np.array([c.name for c in chosen], dtype=str),
                      row_sentence=np.repeat(np.arange(len(F)), [3 * f for f in F]),
                      row_frame=np.concatenate([np.repeat(np.arange(f), 3) for f in F]),
-                     rate=np.array(scans[0].rate), fill_mask=np.concatenate(missing),
+                     rate=np.array(scans[0].rate), fill_mask=_joined(missing),
                      head_residual=np.concatenate(residuals), neutral=sn.mean(axis=0),
                      sentence_neutral=sn)
     except BaseException:
@@ -343,4 +460,9 @@ def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_
         labels=list(keep), path=out,
         gap_report=gap_report_table(reports, checks, cols),
         sentences=sentences_table(chosen, roles, recs, residuals, checks, shape_rms),
-        missing=np.concatenate(missing), filled=np.concatenate(missing))
+        missing=_joined(missing), filled=_joined(missing))
+
+
+def _joined(arrays: list[np.ndarray]) -> np.ndarray:
+    """The arrays one after another (the array itself when there is one: no copy)."""
+    return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)

@@ -154,29 +154,40 @@ def _median_markers(p: np.ndarray) -> np.ndarray:
     return out
 
 
-def centre_distances(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+def centre_distances(rec: Recording, ok: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """(frames, markers) distance (mm) of every sample to its frame's face centre (the
     per-axis median of the markers measured in that frame; a robust centroid: one corrupt
     sample of 1e30 mm does not move it), NaN where the sample is missing or the frame has
     fewer than 3 markers measured; and the (frames,) mask of frames with 3 or more.
-    Computed in blocks of ``BLOCK_FRAMES`` frames."""
+    Computed in blocks of ``BLOCK_FRAMES`` frames. ``ok``: ``finite_samples(rec.points)``
+    when the caller has it."""
     pts = rec.points
     F, n, _ = pts.shape
-    dist = np.full((F, n), np.nan)
+    dist = np.empty((F, n))
     enough = np.zeros(F, dtype=bool)
     for a in range(0, F, BLOCK_FRAMES):
         blk = pts[a:a + BLOCK_FRAMES]
-        ok = finite_samples(blk)
-        enough[a:a + len(blk)] = ok.sum(axis=1) >= 3
-        e = np.flatnonzero(enough[a:a + len(blk)])
+        b = a + len(blk)
+        okb = finite_samples(blk) if ok is None else ok[a:b]
+        enough[a:b] = okb.sum(axis=1) >= 3
+        e = np.flatnonzero(enough[a:b])
+        if e.size < len(blk):
+            dist[a:b] = np.nan
         if e.size == 0:
             continue
-        p = blk if e.size == len(blk) else blk[e]
-        if not ok[e].all():
-            p = np.where(ok[e, :, None], p, np.nan)
+        full = e.size == len(blk)
+        p = blk if full else blk[e]
+        oke = okb if full else okb[e]
+        if not oke.all():
+            p = np.where(oke[:, :, None], p, np.nan)
         with np.errstate(invalid="ignore", over="ignore"):
             d = p - _median_markers(p)
-            dist[a + e] = np.sqrt(np.einsum("fnc,fnc->fn", d, d))
+            r = np.sqrt(np.einsum("fnc,fnc->fn", d, d))
+        if full:
+            dist[a:b] = r
+        else:
+            dist[a + e] = r
     return dist, enough
 
 

@@ -362,6 +362,104 @@ def read_c3d(path, units: str | None = None) -> Recording:
     return Recording(labels, xyz, rate, source=str(p), units=used, units_source=source)
 
 
+def c3d_parameters(path: Path, layout: C3DLayout) -> dict[str, dict[str, dict]]:
+    """The parameter section of an Intel C3D file as ``{GROUP: {NAME: {"value": [...]}}}``
+    (ezc3d's shape): character arrays as lists of strings (trailing spaces stripped, as
+    ezc3d gives them), numbers as flat lists."""
+    with open(path, "rb") as fh:
+        head = fh.read(512)
+        fh.seek((head[0] - 1) * 512)
+        section = fh.read(255 * 512)
+    section = section[:max(section[2], 1) * 512]
+    groups: dict[int, str] = {}
+    params: list[tuple[int, str, dict]] = []
+    pos = 4
+    while pos + 2 <= len(section) and section[pos] != 0:
+        nchars, ident = struct.unpack("bb", section[pos:pos + 2])
+        name = section[pos + 2:pos + 2 + abs(nchars)].decode("latin-1").strip().upper()
+        off_at = pos + 2 + abs(nchars)
+        (offset,) = struct.unpack("<h", section[off_at:off_at + 2])
+        if ident < 0:
+            groups[-ident] = name
+        else:
+            params.append((ident, name, {"value": _value(section, off_at + 2)}))
+        if offset <= 0:
+            break
+        pos = off_at + offset
+    out: dict[str, dict[str, dict]] = {g: {} for g in groups.values()}
+    for ident, name, entry in params:
+        if ident in groups:
+            out[groups[ident]][name] = entry
+    return out
+
+
+def _value(section: bytes, body: int) -> list:
+    """A parameter's data (the entry's type byte at ``body``)."""
+    dtype, ndim = struct.unpack("bb", section[body:body + 2])
+    dims = list(section[body + 2:body + 2 + ndim])
+    start = body + 2 + ndim
+    count = int(np.prod(dims, dtype=np.int64)) if ndim else 1
+    raw = section[start:start + abs(dtype) * count]
+    if dtype == -1:
+        if ndim <= 1:
+            return [raw.decode("latin-1").rstrip()]
+        width = dims[0]
+        if width == 0:
+            return [""] * int(np.prod(dims[1:], dtype=np.int64))
+        return [raw[i:i + width].decode("latin-1").rstrip() for i in range(0, len(raw), width)]
+    kind = {1: "<u1", 2: "<i2", 4: "<f4"}.get(dtype)
+    return [] if kind is None else np.frombuffer(raw, dtype=kind).tolist()
+
+
+def _marker_points(p: Path, layout: C3DLayout, point: dict) -> tuple[list[str], np.ndarray]:
+    """The markers' labels and their points' indices (POINT:LABELS, LABELS2, ...; the points
+    other POINT parameters list as not markers left out, logged)."""
+    from facemotion.io.c3d_points import describe_dropped, non_marker_points
+
+    labels = list(point.get("LABELS", {}).get("value", []))
+    k = 2
+    while len(labels) < layout.points and f"LABELS{k}" in point:
+        labels += point[f"LABELS{k}"]["value"]
+        k += 1
+    if len(labels) < layout.points:
+        raise InputError(f"{p}: POINT:LABELS has {len(labels)} labels for {layout.points} "
+                         "points")
+    labels = [str(x).strip() for x in labels[:layout.points]]
+    not_markers = non_marker_points(point, labels)
+    if not_markers:
+        logging.getLogger("facemotion").info(
+            "%s: left out %d points that are not markers (%s)", p, len(not_markers),
+            describe_dropped(not_markers))
+    kept = np.array([i for i, lab in enumerate(labels) if lab not in not_markers], dtype=int)
+    if kept.size == 0:
+        raise InputError(f"{p}: no marker points (all {layout.points} points are "
+                         f"{', '.join(sorted(set(not_markers.values())))})")
+    labels = [labels[i] for i in kept]
+    empty = [int(kept[i]) for i, lab in enumerate(labels) if not lab]
+    if empty:
+        raise InputError(f"{p}: point(s) {empty[:5]} have an empty label in POINT:LABELS")
+    return labels, kept
+
+
+def c3d_labels(path) -> list[str]:
+    """The marker labels of an Intel C3D file, from its parameter section alone."""
+    p = check_readable(path)
+    layout = check_c3d_size(p)
+    if layout.processor != "Intel":
+        raise InputError(f"{p}: C3D written for a {layout.processor} processor; the block "
+                         "reader reads Intel files only (read it whole)")
+    return _marker_points(p, layout, c3d_parameters(p, layout).get("POINT", {}))[0]
+
+
+def read_c3d_labels(path) -> list[str]:
+    """The marker labels of a C3D file as :func:`read_c3d` gives them: from the parameter
+    section alone for an Intel file (:func:`c3d_labels`), else from the file read whole."""
+    p = check_readable(path)
+    if c3d_layout(p).processor == "Intel":
+        return c3d_labels(p)
+    return read_c3d(p).labels
+
+
 def write_c3d(path, rec: Recording, flag_filled: bool = False,
               descriptions: list[str] | None = None) -> None:
     """Write the points of ``rec`` to a C3D file (mm; residual -1 where a sample is NaN).

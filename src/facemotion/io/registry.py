@@ -78,7 +78,7 @@ class Format:
 
 FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("c3d", "C3D, as Vicon, Qualisys, OptiTrack, Motion Analysis and others write it "
-           "(read with ezc3d)", "c3d", "read_c3d", (".c3d",), None, "write_c3d",
+           "(read with ezc3d)", "c3d", "read_c3d", (".c3d",), "read_c3d_labels", "write_c3d",
            "the file's POINT:UNITS; the sheet's for a file without them"),
     Format("trc", "TRC (OpenSim, Motion Analysis)", "trc", "read_trc", (".trc",),
            "read_trc_labels", "write_trc",

@@ -33,6 +33,8 @@ from facemotion.io.trc import _trc_header, parse_trc_rows
 
 #: Text per block (about 5,000 frames of 468 markers); the caller's memory bound sets its own.
 BLOCK_BYTES = 32 * 2**20
+#: Lines wider than this many fields are parsed by numpy's ``loadtxt`` (see _parse_plain).
+WIDE_COLUMNS = 3000
 
 
 @dataclass
@@ -99,9 +101,13 @@ class TrcBlocks:
 
     def _parse(self, chunk: bytes, first_line: int):
         """(values (lines x ncol), their line numbers, lines in the chunk incl. blank)."""
-        quick = _parse_plain(chunk, self.ncol)
+        skipped, pos = 0, 0  # the blank line after the header, in the first block
+        while chunk.startswith((b"\n", b"\r\n"), pos):
+            pos += 1 if chunk[pos] == 10 else 2
+            skipped += 1
+        quick = _parse_plain(chunk[pos:] if pos else chunk, self.ncol)
         if quick is not None:
-            return quick, first_line + np.arange(len(quick)), len(quick)
+            return quick, first_line + skipped + np.arange(len(quick)), skipped + len(quick)
         try:
             fields, data = _line_fields(chunk, ord("\t"), self.ncol, True)
             vals = (_parse_chunk(chunk, b"\t", int(fields.max()), self.ncol, fields.size)
@@ -157,26 +163,74 @@ class TrcBlocks:
 
 def _parse_plain(chunk: bytes, ncol: int) -> np.ndarray | None:
     """The values of a block whose every line is a data line of exactly ``ncol`` fields, or
-    None. Checked without a pass per byte in Python or numpy: the C parser is given ``ncol``
+    None. Checked without a pass per byte in Python or numpy: the parser is given ``ncol``
     columns, so a line with more fields stops it; then no line is blank (one row per line end)
-    and the tabs add up to ``ncol - 1`` per line, so no line has fewer."""
-    import csv as _csv
-
-    import pandas as pd
-
+    and the tabs add up to ``ncol - 1`` per line, so no line has fewer. Wide lines (more than
+    ``WIDE_COLUMNS`` fields) go to numpy's C ``loadtxt`` first: pandas builds one column per
+    field, and its overhead per column makes it slower there (docs/performance.md, the
+    streamed parsers' table); narrower lines to pyarrow's C++ reader (one thread; both parse
+    numbers to the correctly rounded float, as the exact reader does). A block either refuses
+    goes to pandas."""
     if not chunk.isascii() or b"\0" in chunk:
         return None
     lines = chunk.count(b"\n")
     if chunk.count(b"\t") != lines * (ncol - 1):
         return None
+    values = _loadtxt(chunk, ncol) if ncol > WIDE_COLUMNS else _arrow(chunk, ncol)
+    if values is None:
+        values = _pandas(chunk, ncol)
+    return values if values is not None and len(values) == lines else None
+
+
+def _loadtxt(chunk: bytes, ncol: int) -> np.ndarray | None:
+    """numpy's C reader (Python's correctly rounded float parsing, the exact reader's); None
+    on anything but numbers (an empty field, a token that is not a number)."""
+    try:
+        values = np.loadtxt(io.BytesIO(chunk), delimiter="\t", dtype=np.float64, ndmin=2,
+                            comments=None, quotechar=None)
+    except ValueError:
+        return None
+    return values if values.shape[1] == ncol else None
+
+
+def _arrow(chunk: bytes, ncol: int) -> np.ndarray | None:
+    """pyarrow's CSV reader on one block, one thread (quoting off, an empty field missing);
+    None on anything it refuses (a line with another number of fields, a token that is not a
+    number)."""
+    import pyarrow as pa
+    from pyarrow import csv
+
+    names = [str(i) for i in range(ncol)]
+    try:
+        table = csv.read_csv(
+            pa.py_buffer(chunk),
+            csv.ReadOptions(column_names=names, use_threads=False, block_size=len(chunk) + 1),
+            csv.ParseOptions(delimiter="\t", quote_char=False, double_quote=False),
+            csv.ConvertOptions(column_types=dict.fromkeys(names, pa.float64()),
+                               null_values=[""], strings_can_be_null=False,
+                               quoted_strings_can_be_null=False))
+    except (pa.ArrowInvalid, pa.ArrowTypeError, ValueError):
+        return None
+    out = np.empty((table.num_rows, ncol))
+    for i, column in enumerate(table.columns):
+        out[:, i] = column.to_numpy(zero_copy_only=False) if column.num_chunks else np.nan
+    return out
+
+
+def _pandas(chunk: bytes, ncol: int) -> np.ndarray | None:
+    """pandas' C parser (quoting off, only an empty field missing)."""
+    import csv as _csv
+
+    import pandas as pd
+
     try:
         df = pd.read_csv(io.BytesIO(chunk), sep="\t", header=None, names=range(ncol),
                          index_col=False, dtype=np.float64, engine="c",
                          keep_default_na=False, na_values=[""], quoting=_csv.QUOTE_NONE,
-                         skip_blank_lines=True)
+                         skip_blank_lines=True, low_memory=ncol <= WIDE_COLUMNS)
     except (ValueError, TypeError, pd.errors.ParserError):
         return None
-    return df.to_numpy(dtype=np.float64) if len(df) == lines else None
+    return df.to_numpy(dtype=np.float64)
 
 
 class _CutShort(Exception):
