@@ -32,6 +32,7 @@ def main(sm, log, prov):
     pilots = [pilot(s, n, m) for s, n, m in
               zip(p.subjects, sm.input.npz, sm.input.marker_sets, strict=True)]
     con = consensus_design(pilots, target_mm=p.target_mm, resamples=p.resamples,
+                           selection_resamples=p.selection_resamples,
                            level=p.level, on_unreached="largest")
     ms = con.design
     log.info("%s", ms.describe())

@@ -14,7 +14,8 @@ from facemotion.study.provenance import save_figure, write_artifact, write_table
 def main(sm, log, prov):
     p = sm.params
     disp = load_displacements(sm.input.npz)
-    ms = design_markers(disp, target_mm=p.target_mm, resamples=p.resamples, level=p.level,
+    ms = design_markers(disp, target_mm=p.target_mm, resamples=p.resamples,
+                        selection_resamples=p.selection_resamples, level=p.level,
                         on_unreached="largest")
     ms.neutral = disp.neutral
     log.info("%s", ms.describe())

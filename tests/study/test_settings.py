@@ -48,6 +48,8 @@ def test_defaults_pass(config):
     (("qr", "sweep_pivots"), 21, r"setting qr\.sweep_pivots: 21 pivots"),
     (("qr", "optimality_k_max"), 20, r"setting qr\.optimality_k_max: 20 must be fewer"),
     (("fit", "orthogonal_maps"), 5, r"setting fit\.orthogonal_maps: 5 maps.*k = 4"),
+    (("eval", "selection_resamples"), 5000,
+     r"setting eval\.selection_resamples: 5000 is more than the 1000 resamples"),
 ])
 def test_each_setting_is_refused_not_clamped(config, path, value, match):
     cfg = copy.deepcopy(config)

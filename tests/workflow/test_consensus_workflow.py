@@ -51,7 +51,8 @@ def test_consensus_job_pools_the_subjects_under_their_common_names(tmp_path):
         own = MarkerSetDesign.load(res / sid / "design" / "marker_set.json")
         pilots.append(SubjectPilot(sid, sid, d, [f"m{m}" for m in d.labels], own.selected,
                                    own.expected_error_mm))
-    ref = consensus_design(pilots, target_mm=1.0, resamples=1000, level=0.95,
+    ref = consensus_design(pilots, target_mm=1.0, resamples=1000, selection_resamples=200,
+                           level=0.95,
                            on_unreached="largest")
     saved = json.loads((res / "design" / "consensus_marker_set.json").read_text())
     assert saved["selected"] == ref.design.selected

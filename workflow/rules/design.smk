@@ -31,6 +31,7 @@ rule design_markers:
         label=dataset_label,
         target_mm=config["eval"]["target_error_mm"],
         resamples=config["eval"]["interval_resamples"],
+        selection_resamples=config["eval"]["selection_resamples"],
         level=config["eval"]["interval_level"],
     message:
         "design_markers {wildcards.dataset}: the markers to place for the target error"
@@ -109,6 +110,7 @@ rule design_consensus:
         ),
         target_mm=config["eval"]["target_error_mm"],
         resamples=config["eval"]["interval_resamples"],
+        selection_resamples=config["eval"]["selection_resamples"],
         level=config["eval"]["interval_level"],
     message:
         "design_consensus: one marker set for the study's subjects together"

@@ -434,13 +434,16 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
                    symmetric: bool = False, groups: Sequence[str] | None = None,
                    resamples: int = DEFAULT_RESAMPLES, level: float = DEFAULT_LEVEL,
                    seed: int = 0, max_subsets: int = MAX_SUBSETS,
-                   on_unreached: str = "raise", progress: bool = False) -> MarkerSetDesign:
+                   on_unreached: str = "raise", progress: bool = False,
+                   selection_resamples: int | None = None) -> MarkerSetDesign:
     """Recommend k markers to place from the pilot ``Displacements`` (module notes).
 
     target_mm: the mean held-out error to reach (ignored when ``k`` is given); force / exclude:
     markers that must / must not be placed; symmetric: left-right symmetric sets only; groups:
     each sentence's subject (pilot sentences from several subjects), for a bootstrap over
-    subjects and sentences.  resamples, level, seed: the bootstrap's.  on_unreached: when
+    subjects and sentences.  resamples, level, seed: the bootstrap's.  selection_resamples:
+    how many of those resamples choose the set again for the pooled interval (each runs the
+    recommended selection, an exhaustive search among them; default: all).  on_unreached: when
     no k reaches the target, "raise" (InputError) or "largest" (the largest k evaluated,
     ``settings['target_reached']`` False).  progress: bars on stderr over the
     cross-validation folds (on a terminal; silent otherwise)."""
@@ -480,10 +483,13 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
     subset, sums, frames = errs[method]
     W = bootstrap_weights(S, resamples, np.random.default_rng(seed), groups)
     per, overall = _per_marker(labels, subset, sums, frames, W, level, groups)
-    bar = _bar(resamples, "resampling the selection", progress)
+    n_sel = resamples if selection_resamples is None else int(selection_resamples)
+    if not 1 <= n_sel <= resamples:
+        raise InputError(f"selection_resamples: 1 to resamples ({resamples}), got {n_sel}")
+    bar = _bar(n_sel, "resampling the selection", progress)
     units = S if groups is None else len(set(groups))
-    overall = (overall[0], *selection_interval(disp, method, k, force, exclude, W, level,
-                                               overall[0], units, bar))
+    overall = (overall[0], *selection_interval(disp, method, k, force, exclude, W[:n_sel],
+                                               level, overall[0], units, bar))
     if bar is not None:
         bar.close()
     main = [labels[j] for j in subset]
@@ -492,7 +498,7 @@ def design_markers(disp, *, target_mm: float = DEFAULT_TARGET_MM, k: int | None 
                         rcond=None)[0]
     settings = {"target_mm": None if kft is None else float(target_mm), "force": force,
                 "exclude": exclude, "symmetric": bool(symmetric), "resamples": int(resamples),
-                "seed": int(seed), "folds": len(sentence_folds(S)),
+                "selection_resamples": n_sel, "seed": int(seed), "folds": len(sentence_folds(S)),
                 "resampled": "subjects and sentences" if groups else "sentences",
                 "target_reached": None if kft is None else kft.k is not None}
     return MarkerSetDesign(
@@ -545,15 +551,17 @@ def _gram_factor(G: np.ndarray) -> np.ndarray:
     return np.vstack([B, np.zeros((-B.shape[0] % 3, B.shape[1]))])
 
 
-def _distance_sums(disp, rows_of, sentences, main, rest, X) -> float:
+def _distance_sums(rows_of, sentences, main, rest, X) -> np.ndarray:
     """Summed 3-D distance between measured and predicted (A_m X) secondary markers over the
-    frames of ``sentences``."""
-    total = 0.0
-    for s in sentences:
-        As = rows_of[s]
-        E = As[:, rest] - As[:, main] @ X
-        total += np.sqrt((E.reshape(-1, 3, len(rest)) ** 2).sum(axis=1)).sum()
-    return total
+    frames of each of ``sentences`` (one product for all of them)."""
+    sentences = list(sentences)
+    if not sentences:
+        return np.zeros(0)
+    A = np.vstack([rows_of[s] for s in sentences])
+    E = A[:, rest] - A[:, main] @ X
+    d = np.sqrt((E.reshape(-1, 3, len(rest)) ** 2).sum(axis=1)).sum(axis=1)  # per frame
+    starts = np.cumsum([0] + [rows_of[s].shape[0] // 3 for s in sentences[:-1]])
+    return np.add.reduceat(d, starts)
 
 
 def selection_interval(disp, method: str, k: int, force, exclude, W: np.ndarray,
@@ -587,8 +595,7 @@ def selection_interval(disp, method: str, k: int, force, exclude, W: np.ndarray,
         for part in [*(inbag[f] for f in sentence_folds(inbag.size)), oob]:
             Gf = Gw - np.tensordot(w[part], G[part], axes=1)
             X = np.linalg.lstsq(Gf[np.ix_(main, main)], Gf[np.ix_(main, rest)], rcond=None)[0]
-            for s in part:
-                sums[s] = _distance_sums(disp, rows_of, [s], main, rest, X)
+            sums[part] = _distance_sums(rows_of, part, main, rest, X)
         e_b = (w @ sums) / ((w @ frames) * len(rest))
         t_b = sums.sum() / (frames.sum() * len(rest))
         diffs.append(t_b - e_b)

@@ -44,6 +44,9 @@ def check_settings(config: dict, counts: dict[str, DataCounts]) -> None:
     if config.get("neutral") == "mean_first_10" and checks.get("min_take_frames", 10) < 10:
         _fail("checks.min_take_frames", f"{checks['min_take_frames']} is below the 10 frames "
               "that neutral: mean_first_10 averages")
+    if ev.get("selection_resamples", 0) > ev.get("interval_resamples", 0):
+        _fail("eval.selection_resamples", f"{ev['selection_resamples']} is more than the "
+              f"{ev['interval_resamples']} resamples of eval.interval_resamples it is drawn from")
     for k in fit["k"]:
         if k < fit["orthogonal_maps"]:
             _fail("fit.orthogonal_maps", f"{fit['orthogonal_maps']} maps of the first pivots' "
