@@ -319,7 +319,8 @@ def page_table(args, load0, load1) -> str:
     lines = [f"Written by `python benchmarks/bench_stream.py --cases {' '.join(args.cases)}"
              f"{' --fit' if args.fit else ''}{' --arrow' if args.arrow else ''}"
              f"{' --parsers' if args.parsers else ''}"
-             f"{f' --reps {args.reps}' if args.reps != 1 else ''} "
+             f"{f' --reps {args.reps}' if args.reps != 1 else ''}"
+             f"{f' --block {args.block}' if args.block != 'bench-stream' else ''} "
              f"--page docs/performance.md` on "
              f"{time.strftime('%Y-%m-%d')}: memory.max_gib = {args.max_gib:g}, medians of "
              f"{args.reps}; load average {load0:.2f} at the start, {load1:.2f} at the end.", "",
@@ -350,6 +351,9 @@ def main(argv=None) -> int:
     ap.add_argument("--parsers", action="store_true",
                     help="TRC cases: also the MB/s of each parser judged (PARSERS)")
     ap.add_argument("--page")
+    ap.add_argument("--block", default="bench-stream",
+                    help="the page's generated block to replace (the 10 GB case has its own: "
+                         "bench-stream-10g)")
     args = ap.parse_args(argv)
     load0 = os.getloadavg()[0]
     for name in args.cases:
@@ -359,7 +363,7 @@ def main(argv=None) -> int:
     if args.page:
         from rule_times import update_page
 
-        update_page(args.page, page_table(args, load0, os.getloadavg()[0]), "bench-stream")
+        update_page(args.page, page_table(args, load0, os.getloadavg()[0]), args.block)
     return 0
 
 

@@ -49,6 +49,7 @@ EXTERNAL = {
     "rule-times": "make bench (benchmarks/bench_study.py)",
     "restructure": "make bench (benchmarks/bench_before_after.py)",
     "bench-stream": "make bench (benchmarks/bench_stream.py)",
+    "bench-stream-10g": "benchmarks/bench_stream.py --cases trc10g --block bench-stream-10g",
 }
 FIGURE_DIR = "docs/figures"
 #: The studies the docs read, with the command that makes each.
