@@ -230,7 +230,15 @@ def protocol_text(ms: MarkerSetDesign) -> str:
         f"{ms.settings['folds']}-fold cross-validation over sentences. Expected mean 3-D "
         f"prediction error: {ms.expected_error_mm:.2f} mm ({pct} bootstrap interval "
         f"{ms.error_low_mm:.2f}-{ms.error_high_mm:.2f} mm, {ms.settings['resampled']} "
-        f"resampled, {ms.settings['resamples']} resamples, seed {ms.settings['seed']}).\n")
+        f"resampled, {ms.settings['resamples']} resamples{_reselected(ms.settings)}, seed "
+        f"{ms.settings['seed']}).\n")
+
+
+def _reselected(settings: dict) -> str:
+    """How many resamples chose the set again, when not all of them (designs saved before
+    the setting existed chose it in all)."""
+    n = settings.get("selection_resamples", settings["resamples"])
+    return "" if n == settings["resamples"] else f", the set chosen again in {n} of them"
 
 
 def write_outputs(ms: MarkerSetDesign, out_dir, stem: str = "marker_set") -> list[Path]:
