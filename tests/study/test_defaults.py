@@ -183,6 +183,8 @@ WORKFLOW_ONLY = {
     "qr.route_check", "qr.top_n", "qr.table_orders", "qr.max_filled_fraction",
     "fit.k", "eval.trajectory_marker", "eval.trajectory_sentence", "eval.trajectory_k",
     "eval.consensus",
+    # design_markers chooses the set again in every resample unless told (NOT_THE_SETTING)
+    "eval.selection_resamples",
     "animation.enabled", "animation.k", "animation.sentences", "animation.fps",
     "animation.format",
     # run_lip_model's defaults hold out the last 10 frames of however many there are; the
@@ -197,6 +199,9 @@ NOT_THE_SETTING = {
     ("facemotion.regions.design", "neutral"): "the marker set's rest positions (mm), not the "
                                               "neutral-pose mode",
     ("facemotion.regions.design", "k"): "the design's k: from the target error unless given",
+    ("facemotion.regions.design", "selection_resamples"): "every resample unless told; the "
+                                                          "workflow's setting bounds a study's "
+                                                          "time",
     ("facemotion.regions.marker_set", "k"): "the design's k: from the target error unless given",
     ("facemotion.regions.marker_set", "subjects"): "each pilot take's subject, not the sheet",
     ("facemotion.ingest.loading", "sentences"): "the intervals of the takes, not how many "
