@@ -37,11 +37,9 @@ from facemotion.ingest.validation import (
     _median_markers,
     _reachable,
     centre_distances,
-    check_rate,
+    check_header,
     check_spread_value,
-    check_take_length,
     outlier_notes,
-    units_conflict,
 )
 from facemotion.io.recording import finite_samples
 
@@ -274,12 +272,7 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
     where = str(src.path)
     rec = SimpleNamespace(source=where, rate=src.rate, n_frames=src.n_frames, units=src.units,
                           units_source=src.units_source)
-    conflict = units_conflict(rec, units)
-    if conflict:
-        log.warning("%s: the file declares %s, the subject sheet %s: the file's units are "
-                    "used", where, src.units, units)
-    check_take_length(rec, limits, role)
-    check_rate(rec, limits)
+    conflict = check_header(rec, limits, units, role)
     have = set(src.labels)
     missing_labels = [m for m in used if m not in have]
     if missing_labels:

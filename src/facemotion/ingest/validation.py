@@ -450,17 +450,25 @@ def shape_verdict(proper: float, mirror: float, where: str, first: str,
             f"{limits.name('max_shape_rms_mm')}): markers relabelled, or another face?")
 
 
+def check_header(rec, limits: Limits, sheet_units: str | None = None, role: str = ""):
+    """The checks a take's header decides (units against the sheet's: a warning, and the
+    conflict returned; length and rate: InputError); ``rec`` needs only source, rate,
+    n_frames, units, units_source."""
+    conflict = units_conflict(rec, sheet_units)
+    if conflict:
+        log.warning("%s: the file declares %s, the subject sheet %s: the file's units are "
+                    "used", rec.source or "recording", rec.units, sheet_units)
+    check_take_length(rec, limits, role)
+    check_rate(rec, limits)
+    return conflict
+
+
 def check_take(rec: Recording, limits: Limits, sheet_units: str | None = None,
                role: str = "") -> tuple[Recording, TakeCheck]:
     """All the checks of one take; returns the take with its outliers removed (NaN) and what
     was found. InputError on wrong units, a short take, or outliers with outliers: error."""
     where = rec.source or "recording"
-    conflict = units_conflict(rec, sheet_units)
-    if conflict:
-        log.warning("%s: the file declares %s, the subject sheet %s: the file's units are "
-                    "used", where, rec.units, sheet_units)
-    check_take_length(rec, limits, role)
-    check_rate(rec, limits)
+    conflict = check_header(rec, limits, sheet_units, role)
     distances = centre_distances(rec)  # once, for the units and the outliers
     spread = check_face_spread(rec, limits, distances)
     mask, notes = find_outliers(rec, limits, distances)

@@ -292,6 +292,19 @@ def open_c3d(p: Path):
                          f"{str(e).splitlines()[0][:80] if str(e) else 'no detail'})") from None
 
 
+def point_units(declared: list[str], units: str | None, p) -> tuple[str, str, float]:
+    """(units, where they came from: "file" or "sheet", scale to mm): POINT:UNITS when the
+    file declares them, else the subject sheet's; neither is an error naming the file."""
+    if declared and declared[0]:
+        used, source = declared[0], "file"
+    elif units is not None:
+        used, source = units, "sheet"
+    else:
+        raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
+    return used, source, unit_scale(
+        used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
+
+
 def read_c3d(path, units: str | None = None) -> Recording:
     """Read the 3-D points of a C3D file with ezc3d.
 
@@ -342,13 +355,7 @@ def read_c3d(path, units: str | None = None) -> Recording:
     rate = float(rate_v[0]) if rate_v.size else float(c["header"]["points"]["frame_rate"])
     u = point["UNITS"]["value"] if "UNITS" in point else []
     u = [str(x).strip() for x in u] if not isinstance(u, str) else [u.strip()]
-    if u and u[0]:
-        used, source = u[0], "file"
-    elif units is not None:
-        used, source = units, "sheet"
-    else:
-        raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
-    scale = unit_scale(used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
+    used, source, scale = point_units(u, units, p)
     # (frames, markers, 3); float32 first: the precision the file stores (see the docstring)
     xyz = data[:3, kept].astype(np.float32).astype(float).transpose(2, 1, 0) * scale
     meta = c["data"].get("meta_points", {})

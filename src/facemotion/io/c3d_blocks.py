@@ -30,13 +30,14 @@ from pathlib import Path
 import numpy as np
 
 from facemotion.errors import InputError
-from facemotion.io.base import check_readable, unit_scale
+from facemotion.io.base import check_readable
 from facemotion.io.c3d import (
     C3DLayout,
     _header_disagreement,
     _marker_points,
     c3d_parameters,
     check_c3d_size,
+    point_units,
 )
 
 
@@ -116,11 +117,5 @@ def open_c3d_blocks(path, units: str | None = None) -> C3DBlocks:
     scale_v = point.get("SCALE", {}).get("value", [])
     point_scale = float(scale_v[0]) if scale_v else float(struct.unpack("<f", head[12:16])[0])
     u = [str(x).strip() for x in point.get("UNITS", {}).get("value", [])]
-    if u and u[0]:
-        used, source = u[0], "file"
-    elif units is not None:
-        used, source = units, "sheet"
-    else:
-        raise InputError(f"{p}: POINT:UNITS is missing; give the units in the subject sheet")
-    scale = unit_scale(used, f"{p} ({'POINT:UNITS' if source == 'file' else 'sheet units'})")
+    used, source, scale = point_units(u, units, p)
     return C3DBlocks(p, layout, rate, labels, kept, point_scale, scale, used, source)

@@ -374,13 +374,7 @@ def select_subset(method: str, A: np.ndarray, labels: Sequence[str], k: int, for
     if method == QR:
         ranking = constrained_ranking(A, labels, force=force, exclude=exclude)
         return [int(j) for j in ranking.order[:k]]
-    G = A.T @ A
-    if method == SYMMETRIC:
-        return symmetric_greedy(G, labels, k, force, exclude)
-    if method == GREEDY:
-        return greedy_subset(G, k, force=[labels.index(m) for m in force],
-                             exclude=[labels.index(m) for m in exclude])
-    return exhaustive_subset(G, k)[0]
+    return _select_on_gram(method, A.T @ A, labels, k, force, exclude)
 
 
 def _candidates(disp, k: int, force, exclude, symmetric: bool, max_subsets: int
