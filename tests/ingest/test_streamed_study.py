@@ -6,6 +6,7 @@ window fill agrees with the whole-take fill to FILL_RTOL, the same 1e-9)."""
 from pathlib import Path
 
 import numpy as np
+import pandas.testing as pd_testing
 import pytest
 from helpers import SHARED_DATA
 
@@ -50,28 +51,77 @@ def _compare(paths, fmt, tmp_path, n_train, **kw):
     return whole
 
 
-@pytest.mark.parametrize("subject", ["S2a", "S2b"])
+@pytest.mark.parametrize("subject", ["S1", "S2a", "S2b"])
 def test_the_default_studys_virtual_datasets(tmp_path, subject):
-    """S2a and S2b as the default study makes and loads them: 50 sentences of the 57-marker
-    talker as C3D, 30 to train, 20 held out, head markers aligned then left out."""
+    """S1, S2a and S2b as the default study makes and loads them: the 57-marker talker as C3D,
+    30 sentences to train, the rest held out, head markers aligned then left out; S1 with the
+    sheet's copy_markers (13=11: marker 13 is measured in two frames only)."""
+    from facemotion.ingest.copy_fill import parse_copy_markers
+
     sheet = read_sheet_table(Path(__file__).parents[2] / "config" / "subjects.tsv")
     sheet = sheet.set_index("subject")
     row = sheet.loc[subject]
     paths, _ = write_virtual_subject(tmp_path / "data", subject, row["simulate"], fmt="c3d",
                                      seed=int(row["seed"]), n_sentences=int(row["n_sentences"]))
     head = str(row["head_markers"]).split(",")
+    copies = parse_copy_markers(row["copy_markers"] if isinstance(row["copy_markers"], str)
+                                else None)
+    assert bool(copies) == (subject == "S1")
     whole = _compare(paths, "c3d", tmp_path, 30, head_markers=head, exclude_markers=head,
-                     units="mm")
+                     units="mm", copy_markers=copies)
     assert whole.displacements.A.shape[1] == 57
 
 
-def test_s1s_copied_marker_is_refused_by_the_streamed_loader_in_one_line(tmp_path):
-    """S1 copies marker 11 into 13 (copy_markers, a median over every take): the streamed
-    loader does not take it and says so."""
-    paths, _ = write_virtual_subject(tmp_path, "S1", "S1", fmt="c3d", seed=1, n_sentences=3)
-    with pytest.raises(InputError, match=r"^copy_markers: not supported by the streamed loader"):
-        stream_dataset([str(p) for p in paths], "c3d", tmp_path / "A.npz", train=[0, 1],
-                       heldout=[2], copy_markers=[("13", "11")])
+def _s1_takes(tmp_path, lose_all_in=()):
+    """Three S1 takes as C3D; marker 13 removed from every frame of the takes ``lose_all_in``."""
+    from facemotion.io.c3d import write_c3d
+    from facemotion.virtual.talker import simulate_subject
+
+    subj = simulate_subject("S1", seed=1, n_sentences=3, sentence_duration=(0.8, 1.0))
+    paths = []
+    for i, rec in enumerate(subj.recordings):
+        if i in lose_all_in:
+            rec.points[:, rec.labels.index("13")] = np.nan
+        paths.append(tmp_path / f"S1_s{i + 1:02d}.c3d")
+        write_c3d(paths[-1], rec)
+    return paths
+
+
+def test_a_take_without_the_copied_marker_takes_the_median_offset(tmp_path, caplog):
+    """A take where 13 is never measured (its offset, the median over every take, cancels in
+    its displacements: tests/ingest/test_copy_windows.py checks it) loads as the whole-take
+    path loads it: the same A, pivots, r values and curve, gap report and log line."""
+    import logging
+
+    head = [f"H{i}" for i in range(1, 7)]
+    paths = _s1_takes(tmp_path, lose_all_in=(1,))
+    with caplog.at_level(logging.INFO, logger="facemotion"):
+        whole = _compare(paths, "c3d", tmp_path, 2, head_markers=head, exclude_markers=head,
+                         copy_markers=[("13", "11")])
+    s = stream_dataset([str(p) for p in paths], "c3d", tmp_path / "B.npz", train=[0, 1],
+                       heldout=[2], head_markers=head, exclude_markers=head,
+                       copy_markers=[("13", "11")])
+    pd_testing.assert_frame_equal(s.gap_report, whole.gap_report)
+    assert s.gap_report.set_index("marker").loc["13", "fill_method"].startswith("copy:11")
+    copied = [r.message for r in caplog.records if r.message.startswith("marker 13: ")]
+    assert len(copied) == 2 and copied[0] == copied[1]           # whole, then streamed
+
+
+def test_copy_markers_errors_are_the_whole_take_loaders(tmp_path):
+    """A pair that is never measured together, and a marker not analysed: the same one line
+    from both loaders."""
+    head = [f"H{i}" for i in range(1, 7)]
+    paths = [str(p) for p in _s1_takes(tmp_path, lose_all_in=(0, 1, 2))]
+    for pairs, needle in (([("13", "11")], "never measured in the same frame"),
+                          ([("13", "H1")], "marker 'H1' .* not among the analysed markers")):
+        kw = dict(train=[0, 1], heldout=[2], head_markers=head, exclude_markers=head,
+                  copy_markers=pairs)
+        with pytest.raises(InputError, match=needle) as whole:
+            load_dataset(paths, "c3d", **kw)
+        with pytest.raises(InputError, match=needle) as streamed:
+            stream_dataset(paths, "c3d", tmp_path / "A.npz", **kw)
+        assert str(streamed.value) == str(whole.value)
+        assert not (tmp_path / "A.npz").exists()
 
 
 @pytest.mark.parametrize("fmt", ["trc", "c3d"])

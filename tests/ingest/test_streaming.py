@@ -117,8 +117,6 @@ def test_a_window_beyond_the_memory_bound_is_an_error_naming_the_setting(takes):
 
 def test_what_the_streamed_loader_does_not_take_is_an_error(takes):
     d, paths = takes
-    with pytest.raises(InputError, match="copy_markers: not supported by the streamed loader"):
-        stream_dataset(paths, "trc", d / "C.npz", **KW, copy_markers=[("M01", "M02")])
     cut = [{"name": "a", "take": paths[0], "start_s": 1.0, "end_s": 5.0}]
     with pytest.raises(InputError, match="cut from its take"):
         stream_dataset(paths, "trc", d / "C.npz", **{**KW, "train": [0], "heldout": []},

@@ -19,6 +19,8 @@ too stay missing for the ordinary gap filling; every copied sample is flagged in
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from facemotion.errors import InputError
@@ -54,6 +56,42 @@ def parse_copy_markers(spec, where: str = "copy_markers") -> list[tuple[str, str
     return pairs
 
 
+def pair_columns(labels: list[str], pairs: list[tuple[str, str]], where: str,
+                 source: str | None) -> list[tuple[int, int]]:
+    """Each pair's (target, source) columns in ``labels``; a marker not among them is an
+    InputError."""
+    for t, s in pairs:
+        for m in (t, s):
+            if m not in labels:
+                raise InputError(f"{where}: marker {m!r} (in {t}={s}) is not among the "
+                                 f"analysed markers of {source or 'the recording'}")
+    return [(labels.index(t), labels.index(s)) for t, s in pairs]
+
+
+def take_offsets(firsts: list[np.ndarray | None], pooled_median: Callable[[], np.ndarray | None],
+                 pair: tuple[str, str], where: str) -> list[np.ndarray]:
+    """Each take's offset o = p_t - p_s: its first frame with both measured (``firsts``,
+    None where there is none), else the median over all takes (``pooled_median()``, None when
+    no frame of any take has both; asked for only when a take needs it)."""
+    if all(f is not None for f in firsts):
+        return list(firsts)
+    median = pooled_median()
+    if median is None:
+        t, s = pair
+        raise InputError(f"{where}: markers {t!r} and {s!r} are never measured in the same "
+                         f"frame, so {t!r}'s position relative to {s!r} is unknown")
+    return [median if f is None else f for f in firsts]
+
+
+def copy_rows(points: np.ndarray, jt: int, js: int, offset: np.ndarray) -> np.ndarray:
+    """p_t = p_s + o, in place, in the frames of ``points`` (frames, markers, 3) where the
+    target (column ``jt``) is missing and the source (``js``) is measured; returns those
+    frames (bool)."""
+    rows = ~np.isfinite(points[:, jt]).all(axis=1) & np.isfinite(points[:, js]).all(axis=1)
+    points[rows, jt] = points[rows, js] + offset
+    return rows
+
+
 def copy_fill(recs: list[Recording], pairs: list[tuple[str, str]],
               where: str = "copy_markers") -> tuple[list[Recording], dict[str, int]]:
     """Fill each target's missing samples from its source (see the module notes).
@@ -63,17 +101,11 @@ def copy_fill(recs: list[Recording], pairs: list[tuple[str, str]],
     """
     if not pairs:
         return list(recs), {}
-    labels = recs[0].labels
-    for t, s in pairs:
-        for m in (t, s):
-            if m not in labels:
-                raise InputError(f"{where}: marker {m!r} (in {t}={s}) is not among the "
-                                 f"analysed markers of {recs[0].source or 'the recording'}")
+    columns = pair_columns(recs[0].labels, pairs, where, recs[0].source)
     out = [Recording(list(r.labels), r.points.copy(), r.rate, r.source, r.filled.copy())
            for r in recs]
     counts: dict[str, int] = {}
-    for t, s in pairs:
-        jt, js = labels.index(t), labels.index(s)
+    for (t, s), (jt, js) in zip(pairs, columns, strict=True):
         diffs, firsts = [], []
         for r in recs:
             both = finite_samples(r.points[:, [jt, js]]).all(axis=1)
@@ -81,17 +113,11 @@ def copy_fill(recs: list[Recording], pairs: list[tuple[str, str]],
             diffs.append(d)
             firsts.append(d[0] if len(d) else None)
         pooled = np.concatenate(diffs)
-        if pooled.size == 0:
-            raise InputError(f"{where}: markers {t!r} and {s!r} are never measured in the same "
-                             f"frame, so {t!r}'s position relative to {s!r} is unknown")
-        median = np.median(pooled, axis=0)
+        offsets = take_offsets(firsts, lambda p=pooled: np.median(p, axis=0) if p.size else None,
+                               (t, s), where)
         n = 0
-        for r, first in zip(out, firsts, strict=True):
-            offset = median if first is None else first
-            miss_t = ~np.isfinite(r.points[:, jt]).all(axis=1)
-            ok_s = np.isfinite(r.points[:, js]).all(axis=1)
-            rows = miss_t & ok_s
-            r.points[rows, jt] = r.points[rows, js] + offset     # p_t = p_s + o
+        for r, offset in zip(out, offsets, strict=True):
+            rows = copy_rows(r.points, jt, js, offset)
             r.filled[rows, jt] = True
             n += int(rows.sum())
         counts[t] = n

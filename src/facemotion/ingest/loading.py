@@ -317,7 +317,8 @@ def fill_all_gaps(recs: list[Recording], missing: list[np.ndarray],
     for r, miss in zip(recs, missing, strict=True):
         f, rep = fill_gaps(r, max_interp_s=max_interp_s, long_gaps=long_gaps)
         filled_recs.append(f)
-        reports.append(_report_copies(rep, miss, r, copy_markers))
+        reports.append(report_copies(rep, miss, miss & finite_samples(r.points), r.labels,
+                                     copy_markers))
     return filled_recs, reports
 
 
@@ -354,18 +355,18 @@ def sentences_table(chosen: list[Segment], roles: list[str], recs: list[Recordin
     })
 
 
-def _report_copies(rep: pd.DataFrame, miss: np.ndarray, rec, pairs: list[tuple[str, str]]
-                   ) -> pd.DataFrame:
+def report_copies(rep: pd.DataFrame, miss: np.ndarray, copied: np.ndarray, labels: list[str],
+                  pairs: list[tuple[str, str]]) -> pd.DataFrame:
     """The gap report of a take, with the copy-filled targets described as they were before
-    the copy (``miss``: missing samples, gaps) and 'copy:SOURCE' among their fill methods."""
+    the copy (``miss``: missing samples, gaps; ``copied``: the samples copied) and
+    'copy:SOURCE' among their fill methods."""
     from facemotion.ingest.gaps import runs
 
     if not pairs:
         return rep
     rep = rep.copy()
-    copied = miss & finite_samples(rec.points)
     for t, s in pairs:
-        j = rec.labels.index(t)
+        j = labels.index(t)
         i = int(np.flatnonzero(rep["marker"].to_numpy() == t)[0])
         r = runs(miss[:, j])
         rep.loc[i, "missing_frames"] = int(miss[:, j].sum())

@@ -23,8 +23,9 @@ flags ends it (what was written is dropped) and the take is read again the two-p
 ``max_gib`` (the workflow's setting ``memory.max_gib``) bounds the memory: it sets the
 blocks' sizes, the log says the bound and the sizes, and a gap whose fill needs a window larger
 than the bound is an error naming it.
-Not streamed (an InputError says so): sentences cut from takes (``segments``) and
-``copy_markers`` (their offsets are medians over every take). Readers without a block reader
+``copy_markers`` are copied in each window after its alignment, from offsets found by
+:mod:`facemotion.ingest.copy_windows`. Not streamed (an InputError says so): sentences cut from
+takes (``segments``). Readers without a block reader
 (formats other than TRC and Intel C3D, and files with a subject prefix) read the take whole,
 then give it in blocks.
 """
@@ -35,6 +36,7 @@ import contextlib
 import logging
 import shutil
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -99,10 +101,7 @@ class Budget:
         return cls(max_gib, text, frames, window)
 
 
-def _check_streamable(chosen, copy_markers) -> None:
-    if copy_markers:
-        raise InputError("copy_markers: not supported by the streamed loader (each offset is a "
-                         "median over every take); load the dataset whole")
+def _check_streamable(chosen) -> None:
     cut = [s for s in chosen if not s.whole]
     if cut:
         raise InputError(f"{cut[0].take}: sentence {cut[0].name!r} is cut from its take; the "
@@ -186,7 +185,8 @@ def same_shape(scans: list[TakeScan], limits: Limits, budget: Budget,
                          budget.frames)
         x[s0.outliers[:, c:c + per_col]] = np.nan
         x[~np.isfinite(x)] = np.nan
-        with np.errstate(all="ignore"):
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a marker never seen: NaN here
             ref[c:c + per_col] = np.nanmedian(x, axis=0) if len(x) else np.nan
     cols = np.isfinite(ref).all(axis=1)
     idx = np.flatnonzero(cols)
@@ -256,9 +256,10 @@ class OnePass:
 
 
 def stream_take(scan: TakeScan, keep: list[str], plan: GapPlan, writer, G, budget: Budget,
-                *, neutral: str, head_markers: list[str], reference):
-    """Pass 2 of one take: blocks aligned, filled, as displacements to ``writer`` and (when
-    ``G`` is not None) into G. Returns the take's neutral pose (markers, 3) and G."""
+                *, neutral: str, head_markers: list[str], reference, copy=None):
+    """Pass 2 of one take: blocks aligned, copied into (``copy(points)``: the copy_markers,
+    in place), filled, as displacements to ``writer`` and (when ``G`` is not None) into G.
+    Returns the take's neutral pose (markers, 3) and G."""
     from facemotion.ingest.head_motion import align_head
     from facemotion.io.recording import Recording
 
@@ -277,6 +278,8 @@ def stream_take(scan: TakeScan, keep: list[str], plan: GapPlan, writer, G, budge
         if head_markers:
             rec = Recording(list(scan.labels), pts, scan.rate, scan.source)
             pts = align_head(rec, head_markers, reference=reference)[0].points
+        if copy is not None:
+            copy(pts)
         filled = fill_window(pts[:, cols], lo, a, b, plan, scan.rate, keep, scan.source)
         if n0 is None:
             n0 = filled[0].copy() if neutral == "first_frame" else filled[:10].mean(axis=0)
@@ -297,11 +300,14 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
                    subject_prefix: str | None = None, copy_markers=(),
                    markers_named_in: str = "the subject sheet",
                    max_gib: float = MAX_GIB,
-                   head_reference: np.ndarray | None = None) -> StreamedDataset:
+                   head_reference: np.ndarray | None = None,
+                   copy_medians: list | None = None) -> StreamedDataset:
     """:func:`~facemotion.ingest.loading.load_dataset`'s dataset, streamed (module notes): A
     written to the displacements file ``out``, the training rows' Gram returned.
     ``head_reference``: the head markers' reference (:func:`reference_from_heads` of every
-    take of the dataset) when this call loads a part of it (one job of a scattered load)."""
+    take of the dataset) when this call loads a part of it (one job of a scattered load), and
+    ``copy_medians`` the copy_markers pairs' medians over the whole dataset
+    (:func:`facemotion.ingest.copy_windows.median_of_differences`)."""
     from facemotion.ingest.loading import check_marker_lists
     from facemotion.ingest.segments import Segment
 
@@ -310,7 +316,7 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
                                               else recordings)]
     chosen = [items[i] for i in list(train) + list(heldout)]
     roles = ["train"] * len(train) + ["heldout"] * len(heldout)
-    _check_streamable(chosen, copy_markers)
+    _check_streamable(chosen)
     where = chosen[0].take
     labels = _same_layout([s.take for s in chosen], fmt, subject_prefix)
     keep, used = check_marker_lists(labels, where, head_markers, exclude_markers,
@@ -330,14 +336,15 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
                          units=units, subject_prefix=subject_prefix, neutral=neutral,
                          head_markers=list(head_markers), where=where,
                          max_interp_s=max_interp_s, long_gaps=long_gaps,
-                         head_reference=head_reference)
+                         head_reference=head_reference,
+                         copies=(list(copy_markers), copy_medians))
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
 
 def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units,
           subject_prefix, neutral, head_markers, where, max_interp_s, long_gaps,
-          head_reference) -> StreamedDataset:
+          head_reference, copies) -> StreamedDataset:
     """Every take's first pass (or its one pass), then the second."""
     one = _one_pass(chosen[0].take, fmt, used, keep, out, scratch / "take0.f8", roles[0],
                     budget, limits, units=units, subject_prefix=subject_prefix,
@@ -348,7 +355,7 @@ def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units
             return _second_pass([one[0]], chosen, roles, keep, used, out, budget, limits,
                                 head_markers=[], where=where, neutral=neutral,
                                 max_interp_s=max_interp_s, long_gaps=long_gaps,
-                                one_pass=one[1])
+                                one_pass=one[1], copies=copies)
         except BaseException:
             one[1].abort()
             raise
@@ -362,7 +369,7 @@ def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units
     return _second_pass(scans, chosen, roles, keep, used, out, budget, limits,
                         head_markers=list(head_markers), where=where, neutral=neutral,
                         max_interp_s=max_interp_s, long_gaps=long_gaps,
-                        reference=head_reference)
+                        reference=head_reference, copies=copies)
 
 
 def _one_pass(take, fmt, used, keep, out, scratch, role, budget, limits, *, units,
@@ -388,14 +395,14 @@ def _one_pass(take, fmt, used, keep, out, scratch, role, budget, limits, *, unit
 
 def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_markers,
                  where, neutral, max_interp_s, long_gaps, reference=None,
-                 one_pass: OnePass | None = None) -> StreamedDataset:
+                 one_pass: OnePass | None = None, copies=((), None)) -> StreamedDataset:
     """Checks across takes, the head reference, then every take to A and G (``one_pass``:
     the one take's A and G, made while it was read)."""
     from types import SimpleNamespace
 
     from facemotion.ingest.displacement_file import DisplacementsWriter
     from facemotion.ingest.gaps import gap_report
-    from facemotion.ingest.loading import gap_report_table, sentences_table
+    from facemotion.ingest.loading import gap_report_table, report_copies, sentences_table
 
     for s in scans[1:]:
         if s.rate != scans[0].rate:
@@ -414,22 +421,28 @@ def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_
     if cols == list(range(len(used))):
         cols = slice(None)  # every marker used is analysed: views, not copies
     n = len(keep)
+    copy_plan = _copy_plan(scans, copies, keep, head_markers, reference, budget, where,
+                           one_pass is not None)
     G = np.zeros((n, n), order="F")
     if one_pass is not None:
         writer, G = one_pass.writer, G if one_pass.G is None else one_pass.G
     else:
         writer = DisplacementsWriter(out, keep, 3 * sum(s.n_frames for s in scans))
     neutrals, missing, reports = [], [], []
+    copied = {t: 0 for t, _ in copies[0]}
     try:
-        for s, role in zip(scans, roles, strict=True):
+        for i, (s, role) in enumerate(zip(scans, roles, strict=True)):
             miss = (s.missing | s.outliers if s.outliers.any() else s.missing)[:, cols]
-            plan = plan_gaps(miss, s.rate, max_interp_s, long_gaps, keep, s.source)
+            left = miss if copy_plan is None else copy_plan.left_missing(miss)
+            plan = plan_gaps(left, s.rate, max_interp_s, long_gaps, keep, s.source)
             if one_pass is not None:
                 n0, g = one_pass.n0, None
             else:
                 n0, g = stream_take(s, keep, plan, writer, G if role == "train" else None,
                                     budget, neutral=neutral, head_markers=head_markers,
-                                    reference=reference)
+                                    reference=reference,
+                                    copy=None if copy_plan is None
+                                    else (lambda pts, i=i: copy_plan.copy(i, pts)))
             G = G if g is None else g
             neutrals.append(n0)
             missing.append(miss)
@@ -437,7 +450,12 @@ def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_
                        for c, p in zip(plan.cubic, plan.pca, strict=True)]
             rec = SimpleNamespace(filled=miss, labels=keep, n_markers=n,
                                   n_frames=s.n_frames)
-            reports.append(gap_report(rec, methods=methods, missing=miss))
+            report = gap_report(rec, methods=methods, missing=left)
+            if copy_plan is not None:
+                report = report_copies(report, miss, miss & ~left, keep, copies[0])
+                for t, jt in zip(copied, (jt for jt, _ in copy_plan.keep_cols), strict=True):
+                    copied[t] += int((miss[:, jt] & ~left[:, jt]).sum())
+            reports.append(report)
         sn = np.stack(neutrals)
         F = [s.n_frames for s in scans]
         writer.close(sentences=np.array([c.name for c in chosen], dtype=str),
@@ -449,6 +467,9 @@ def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_
     except BaseException:
         writer.abort()
         raise
+    for t, s in copies[0]:
+        log.info("marker %s: %d missing samples filled by copying %s's displacement (head "
+                 "coordinates)", t, copied[t], s)
     iu = np.triu_indices(n, 1)
     G[(iu[1], iu[0])] = G[iu]
     checks = [s.check for s in scans]
@@ -461,6 +482,24 @@ def _second_pass(scans, chosen, roles, keep, used, out, budget, limits, *, head_
         gap_report=gap_report_table(reports, checks, cols),
         sentences=sentences_table(chosen, roles, recs, residuals, checks, shape_rms),
         missing=_joined(missing), filled=_joined(missing))
+
+
+def _copy_plan(scans, copies, keep, head_markers, reference, budget, where, one_pass: bool):
+    """The copy_markers' :class:`~facemotion.ingest.copy_windows.CopyPlan`, or None (no
+    pairs; or a take loaded in one pass, which had nothing missing to copy into: its pairs'
+    markers are only checked)."""
+    from facemotion.ingest.copy_fill import pair_columns
+    from facemotion.ingest.copy_windows import CopyPlan
+
+    pairs, pooled = copies
+    where = f"{where}: subject sheet's copy_markers"
+    if not pairs:
+        return None
+    if one_pass:
+        pair_columns(keep, pairs, where, scans[0].source)
+        return None
+    return CopyPlan.of(scans, pairs, keep, head_markers=head_markers, reference=reference,
+                       block_frames=budget.frames, where=where, pooled=pooled)
 
 
 def _joined(arrays: list[np.ndarray]) -> np.ndarray:
