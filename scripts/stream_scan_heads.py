@@ -1,7 +1,9 @@
-"""One take of a scattered streamed load, step 1: read in blocks, checked, its head points."""
+"""One take of a scattered streamed load, step 1: read in blocks, checked, its head points (and
+the copy_markers pairs' points)."""
 
 import numpy as np
 
+from facemotion.ingest.copy_fill import parse_copy_markers
 from facemotion.ingest.loading import check_marker_lists
 from facemotion.ingest.scatter import scan_heads
 from facemotion.io.npz import npz_bytes
@@ -17,14 +19,17 @@ def main(sm, log, prov):
     labels = read_labels(take, ds["format"], ds["subject_prefix"])
     _, used = check_marker_lists(labels, take, ds["head_markers"], ds["exclude_markers"],
                                  ds["include_markers"])
-    head, rate = scan_heads(take, ds["format"], used, ds["head_markers"],
-                            limits=limits_from_config(sm.params.gaps, sm.params.checks),
-                            units=ds["units"], subject_prefix=ds["subject_prefix"],
-                            max_gib=sm.params.max_gib)
+    pairs = parse_copy_markers(ds["copy_markers"], "copy_markers")
+    head, rate, pair_points = scan_heads(
+        take, ds["format"], used, ds["head_markers"],
+        limits=limits_from_config(sm.params.gaps, sm.params.checks), units=ds["units"],
+        subject_prefix=ds["subject_prefix"], max_gib=sm.params.max_gib, copy_markers=pairs)
     prov.inputs = [take]
     arrays = {"rate": np.array(rate)}
     if head is not None:
         arrays["head"] = head
+    for j, pts in enumerate(pair_points):
+        arrays[f"pair{j}"] = pts
     write_artifact(sm.output.npz, npz_bytes(arrays), "stream_heads", prov)
 
 

@@ -24,6 +24,7 @@ def main(sm, log, prov):
         neutral=sm.params.neutral, limits=limits_from_config(gaps, sm.params.checks),
         subject_prefix=ds["subject_prefix"],
         copy_markers=parse_copy_markers(ds["copy_markers"], "copy_markers"),
+        copy_medians=ref["copy_medians"] if "copy_medians" in ref else None,
         max_gib=sm.params.max_gib)
     prov.inputs = [take, sm.input.reference]
     log.info("%s (%s): %d rows x %d markers", take, sm.params.take["role"], part.train_rows,

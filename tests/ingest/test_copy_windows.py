@@ -67,10 +67,13 @@ def test_offsets_equal_the_whole_take_copys(tmp_path):
     np.testing.assert_allclose(plan.offsets[1][0], np.median(pooled, axis=0), rtol=0, atol=1e-12)
     assert np.abs(plan.offsets[1][0] - plan.offsets[0][0]).max() > 1e-6
     # a scattered part given the dataset's medians uses them
-    given = [np.array([1.0, 2.0, 3.0])]
+    given = np.array([[1.0, 2.0, 3.0]])
     part = CopyPlan.of(scans, [("13", "11")], keep, head_markers=HEAD, reference=reference,
                        block_frames=7, where="S1", pooled=given)
-    assert part.offsets[1][0] is given[0]
+    np.testing.assert_array_equal(part.offsets[1][0], given[0])
+    with pytest.raises(InputError, match="never measured in the same frame"):
+        CopyPlan.of(scans, [("13", "11")], keep, head_markers=HEAD, reference=reference,
+                    block_frames=7, where="S1", pooled=np.full((1, 3), np.nan))
     np.testing.assert_array_equal(part.offsets[0][0], plan.offsets[0][0])
 
 
@@ -93,3 +96,38 @@ def test_no_take_with_both_measured_is_an_error(tmp_path):
     with pytest.raises(InputError, match=r"^S1: markers '13' and '11' are never measured"):
         CopyPlan.of(scans, [("13", "11")], keep, head_markers=HEAD, reference=reference,
                     block_frames=7, where="S1")
+
+
+def test_a_scattered_load_gathers_the_single_jobs_median_and_rows(tmp_path):
+    """Each take's job keeps the pair's and head columns (scan_heads), the gather step takes
+    the median over every take: the single job's offset for the take that never measured 13;
+    each take's part of A is the single streamed job's rows."""
+    from facemotion.ingest import scatter
+    from facemotion.ingest.displacement_file import load_displacements
+    from facemotion.ingest.streaming import stream_dataset
+
+    paths, keep, used = _takes(tmp_path, lose_all_in=(1,))
+    pairs = [("13", "11")]
+    scanned = [scatter.scan_heads(p, "c3d", used, HEAD, copy_markers=pairs) for p in paths]
+    ref = scatter.gather_reference([s[0] for s in scanned], [s[1] for s in scanned], HEAD, "S1")
+    medians = scatter.gather_copy_medians([s[2] for s in scanned], pairs, scanned[0][1], HEAD,
+                                          ref)
+    assert medians.shape == (1, 3)
+    scans, reference = _scans(tmp_path, paths, used)
+    np.testing.assert_array_equal(ref, reference)
+    plan = CopyPlan.of(scans, pairs, keep, head_markers=HEAD, reference=reference,
+                       block_frames=7, where="S1")
+    np.testing.assert_allclose(medians[0], plan.offsets[1][0], rtol=0, atol=1e-12)
+    opts = dict(head_markers=HEAD, exclude_markers=HEAD, copy_markers=pairs)
+    single = stream_dataset(paths, "c3d", tmp_path / "single.npz", train=[0, 1, 2], heldout=[],
+                            **opts)
+    A = load_displacements(tmp_path / "single.npz").A
+    start = 0
+    for i, p in enumerate(paths):
+        part = scatter.load_take(p, "c3d", tmp_path / f"part{i}.npz", head_reference=ref,
+                                 copy_medians=medians, **opts)
+        rows = load_displacements(tmp_path / f"part{i}.npz").A
+        np.testing.assert_array_equal(rows, A[start:start + len(rows)])
+        start += len(rows)
+        assert part.gap_report.set_index("marker").loc["13", "fill_method"] == "copy:11"
+    assert start == len(A) and single.train_rows == len(A)

@@ -148,7 +148,8 @@ def test_a_scattered_load_gathers_the_single_jobs_gram_and_pivots(takes):
     roles = ["train", "train", "heldout"]
     used = [f"M{j:02d}" for j in range(40)] + HEAD
     scans = [scatter.scan_heads(p, "trc", used, HEAD, units="mm") for p in paths]
-    ref = scatter.gather_reference([h for h, _ in scans], [r for _, r in scans], HEAD, paths[0])
+    ref = scatter.gather_reference([s[0] for s in scans], [s[1] for s in scans], HEAD,
+                                   paths[0])
     opts = dict(units="mm", head_markers=HEAD, exclude_markers=HEAD, max_gib=MAX_GIB)
     parts = [scatter.load_take(p, "trc", d / f"part{i}.npz", head_reference=ref, **opts)
              for i, p in enumerate(paths)]

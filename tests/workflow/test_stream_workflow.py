@@ -1,12 +1,15 @@
-"""The scattered streamed load (target `stream`: one job per take, gathered) against the
-study's whole-take loading rule, on the dense study's talker (TRC, 468 points) and the default
-study's S2a (C3D): the gathered Gram is the training rows' A^T A of the study's
-displacements.npz to round-off, with the same pivots."""
+"""The scattered streamed load (target `stream`: one job per take, gathered, ranked, the held-out
+takes evaluated block by block) against the study's whole-take rules, on the dense study's
+talker (TRC, 468 points) and the default study's S1 (C3D, head markers, copy_markers 13=11):
+the gathered Gram is the training rows' A^T A of the study's displacements.npz to round-off,
+with the same pivots; its r values and held-out error curve are the study's to the digits the
+tables print."""
 
 import subprocess
 import sys
 
 import numpy as np
+import pandas as pd
 import pytest
 from helpers import REPO, SHARED_DATA
 
@@ -31,13 +34,14 @@ memory:
 
 
 @pytest.mark.parametrize("sheet,subject", [("dense_subjects.tsv", "dense468"),
-                                           ("subjects.tsv", "S2a")])
+                                           ("subjects.tsv", "S1")])
 def test_the_gathered_gram_is_the_whole_take_loads(tmp_path, sheet, subject):
     (tmp_path / "c.yaml").write_text(CONFIG.format(sheet=REPO / "config" / sheet,
                                                    shared=SHARED_DATA, subject=subject))
     root = tmp_path / "results" / "streamcheck" / "dense4"
     targets = [str((root / f).relative_to(tmp_path))
-               for f in ("stream/gram.npz", "data/displacements.npz")]
+               for f in ("stream/gram.npz", "data/displacements.npz", "stream/r_values.tsv",
+                         "stream/error_curve.tsv", "qr/r_values.tsv", "eval/error_curve.tsv")]
     cmd = [sys.executable, "-m", "snakemake", *targets, "-s", str(REPO / "Snakefile"),
            "--directory", str(tmp_path), "--cores", "2", "--configfile", str(tmp_path / "c.yaml")]
     proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -58,3 +62,10 @@ def test_the_gathered_gram_is_the_whole_take_loads(tmp_path, sheet, subject):
     log = (tmp_path / "results" / "streamcheck" / "logs" / "stream_take" / "dense4"
            / "t001.log").read_text()
     assert "memory.max_gib = 0.25" in log
+    pairs = (("stream/r_values.tsv", "qr/r_values.tsv", "marker"),
+             ("stream/error_curve.tsv", "eval/error_curve.tsv", "main_markers"))
+    for streamed, whole, key in pairs:
+        a = pd.read_csv(root / streamed, sep="\t", dtype={key: str}, keep_default_na=False)
+        b = pd.read_csv(root / whole, sep="\t", dtype={key: str}, keep_default_na=False)
+        assert list(a[key]) == list(b[key])  # the pivots
+        pd.testing.assert_frame_equal(a, b[a.columns], check_exact=False, rtol=1e-8, atol=0)

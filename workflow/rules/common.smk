@@ -542,6 +542,16 @@ def stream_heads(wildcards):
     )
 
 
+def stream_heldout_parts(wildcards):
+    """The held-out takes' parts of A, in the dataset's order."""
+    ds = DATASETS[wildcards.dataset]
+    return expand(
+        "<results>/{dataset}/stream/takes/{take}.npz",
+        dataset=wildcards.dataset,
+        take=stream_take_ids(wildcards.dataset)[len(ds.train) :],
+    )
+
+
 def stream_grams(wildcards):
     return expand(
         "<results>/{dataset}/stream/takes/{take}.gram.npz",

@@ -1,7 +1,8 @@
 # Streamed loading scattered over jobs (target `stream`, not part of `all`): one job per take
 # reads it in blocks within memory.max_gib (facemotion.ingest.scatter), gather rules add the
-# head reference and the Gram of the training takes. On a cluster (profiles/slurm) the takes of
-# a dataset load on as many nodes as there are takes.
+# head reference and the Gram of the training takes, then rank it and evaluate the held-out
+# takes block by block. On a cluster (profiles/slurm) the takes of a dataset load on as many
+# nodes as there are takes.
 
 
 localrules:
@@ -10,7 +11,11 @@ localrules:
 
 rule stream:
     input:
-        expand("<results>/{dataset}/stream/gram.npz", dataset=list(DATASETS)),
+        expand("<results>/{dataset}/stream/r_values.tsv", dataset=list(DATASETS)),
+        expand(
+            "<results>/{dataset}/stream/error_curve.tsv",
+            dataset=[d for d in DATASETS if DATASETS[d].heldout],
+        ),
     message:
         "stream: every dataset loaded take by take, its Gram gathered"
 
@@ -107,3 +112,47 @@ rule gather_gram:
         "gather_gram {wildcards.dataset}: G = sum of the training takes' Grams"
     script:
         "../../scripts/gather_gram.py"
+
+
+rule rank_stream:
+    input:
+        gram="<results>/{dataset}/stream/gram.npz",
+    output:
+        **table("r_values", "<results>/{dataset}/stream/r_values.tsv"),
+    log:
+        "<results>/logs/rank_stream/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=10,
+    params:
+        k_max=config["qr"]["k_max"],
+        r_normalisation=config["qr"]["r_normalisation"],
+    message:
+        "rank_stream {wildcards.dataset}: the gathered Gram ranked (L&M Fig. 2)"
+    script:
+        "../../scripts/rank_stream.py"
+
+
+rule evaluate_stream:
+    input:
+        gram="<results>/{dataset}/stream/gram.npz",
+        heldout=stream_heldout_parts,
+    output:
+        **table("curve", "<results>/{dataset}/stream/error_curve.tsv"),
+    log:
+        "<results>/logs/evaluate_stream/{dataset}.log",
+    conda:
+        "../envs/facemotion.yaml"
+    threads: 1
+    resources:
+        mem_mb=lambda wc: int(1536 * config["memory"]["max_gib"]),
+        runtime=30,
+    params:
+        k_max=config["qr"]["k_max"],
+    message:
+        "evaluate_stream {wildcards.dataset}: held-out error against k, block by block (L&M Fig. 10)"
+    script:
+        "../../scripts/evaluate_stream.py"

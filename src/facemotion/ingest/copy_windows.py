@@ -37,20 +37,38 @@ def _aligned(points: np.ndarray, labels: list[str], rate: float, head_markers: l
                       reference=reference)[0].points
 
 
-def pair_differences(scan: TakeScan, pairs: list[tuple[str, str]], head_markers: list[str],
-                     reference, block_frames: int) -> list[np.ndarray]:
-    """Per pair, p_t - p_s (head coordinates) in every frame of the take where both are
-    measured: the pair's and the head markers' columns read back in blocks, aligned."""
+def pair_points(scan: TakeScan, pairs: list[tuple[str, str]], head_markers: list[str],
+                block_frames: int) -> list[np.ndarray]:
+    """Per pair, its target's, source's and the head markers' points in every frame of the
+    take (frames, 2 + head, 3; outliers NaN; the order of :func:`pair_names`), read back from
+    the take's scratch file in blocks of frames."""
     out = []
-    for t, s in pairs:
-        names = [t, s] + [h for h in head_markers if h not in (t, s)]
-        cols = [scan.labels.index(m) for m in names]
+    for pair in pairs:
+        cols = [scan.labels.index(m) for m in pair_names(pair, head_markers)]
         pts = read_columns(scan.scratch, len(scan.labels), scan.n_frames, cols, block_frames)
         pts[scan.outliers[:, cols]] = np.nan
-        pts = _aligned(pts, names, scan.rate, head_markers, reference)
-        both = np.isfinite(pts[:, :2]).all(axis=(1, 2))
-        out.append(pts[both, 0] - pts[both, 1])
+        out.append(pts)
     return out
+
+
+def pair_names(pair: tuple[str, str], head_markers: list[str]) -> list[str]:
+    return list(pair) + [h for h in head_markers if h not in pair]
+
+
+def differences(points: np.ndarray, pair: tuple[str, str], rate: float,
+                head_markers: list[str], reference) -> np.ndarray:
+    """p_t - p_s (head coordinates) in the frames of ``points`` (:func:`pair_points`' layout)
+    where both are measured."""
+    pts = _aligned(points, pair_names(pair, head_markers), rate, head_markers, reference)
+    both = np.isfinite(pts[:, :2]).all(axis=(1, 2))
+    return pts[both, 0] - pts[both, 1]
+
+
+def pair_differences(scan: TakeScan, pairs: list[tuple[str, str]], head_markers: list[str],
+                     reference, block_frames: int) -> list[np.ndarray]:
+    """Per pair, :func:`differences` over every frame of the take."""
+    return [differences(pts, pair, scan.rate, head_markers, reference) for pair, pts in
+            zip(pairs, pair_points(scan, pairs, head_markers, block_frames), strict=True)]
 
 
 def median_of_differences(per_take: list[list[np.ndarray]]) -> list[np.ndarray | None]:
@@ -75,9 +93,11 @@ class CopyPlan:
     @classmethod
     def of(cls, scans: list[TakeScan], pairs: list[tuple[str, str]], keep: list[str], *,
            head_markers: list[str], reference, block_frames: int, where: str,
-           pooled: list[np.ndarray | None] | None = None) -> CopyPlan:
-        """``pooled``: the pairs' medians over the whole dataset when these scans are a part
-        of it (a scattered load); computed from the scans when a take needs them."""
+           pooled: np.ndarray | None = None) -> CopyPlan:
+        """``pooled``: the pairs' medians over the whole dataset (pairs, 3; NaN: never
+        measured together) when these scans are a part of it (a scattered load:
+        :func:`facemotion.ingest.scatter.gather_copy_medians`); computed from the scans when a
+        take needs them."""
         keep_cols = pair_columns(keep, pairs, where, scans[0].source)
         used_cols = [(scans[0].labels.index(t), scans[0].labels.index(s)) for t, s in pairs]
         per_take: list[list[np.ndarray]] = [[] for _ in scans]
@@ -97,7 +117,7 @@ class CopyPlan:
             def median(j=j):
                 nonlocal medians
                 if pooled is not None:
-                    return pooled[j]
+                    return None if np.isnan(pooled[j]).any() else pooled[j]
                 if medians is None:
                     medians = median_of_differences([
                         pair_differences(sc, pairs, head_markers, reference, block_frames)
