@@ -12,7 +12,7 @@ from facemotion.study.provenance import write_table
 def main(sm, log, prov):
     with np.load(sm.input.gram) as g:
         G, rows, labels = g["gram"], int(g["rows"]), [str(x) for x in g["labels"]]
-    ranking = rank_from_gram(G, rows, labels, k_max=sm.params.k_max)
+    ranking = rank_from_gram(G, rows, labels)  # every pivot, as the study ranks
     table = ranking.to_frame(sm.params.r_normalisation)
     table["singular_value"] = singular_values(ranking)
     table["remainder_norm"] = remainder_norms(ranking)

@@ -128,7 +128,6 @@ rule rank_stream:
         mem_mb=4000,
         runtime=10,
     params:
-        k_max=config["qr"]["k_max"],
         r_normalisation=config["qr"]["r_normalisation"],
     message:
         "rank_stream {wildcards.dataset}: the gathered Gram ranked (L&M Fig. 2)"
