@@ -115,12 +115,59 @@ def test_a_window_beyond_the_memory_bound_is_an_error_naming_the_setting(takes):
     assert not [p for p in d.iterdir() if p.name.startswith(".B.npz")]
 
 
+def _sentences(paths):
+    """Sentences cut from the takes: take 0 in three (one boundary in the middle of the
+    1,800 mm/s jump at frames 700-705, so each side judges its own part of it), take 1 in
+    one, take 2 in two; frames between sentences left out."""
+    b = 703 / RATE
+    cuts = [(0, 1.0, b), (0, b, 30.0), (0, 30.5, 66.0), (1, 0.5, 10.0), (2, 0.0, 25.0),
+            (2, 25.0, 51.0)]
+    return [{"name": f"s{i + 1}", "take": paths[t], "start_s": a, "end_s": e}
+            for i, (t, a, e) in enumerate(cuts)]
+
+
+def test_sentences_cut_from_takes_stream_as_the_whole_take_path_cuts_them(takes, caplog):
+    """Each take read once for all its sentences; each sentence checked, aligned, filled and
+    streamed as the whole-take path does with the sentence it cuts: the same A, masks, gap
+    report, sentences table, outlier warnings and Gram."""
+    d, paths = takes
+    kw = dict(sentences=_sentences(paths), train=[0, 1, 3, 4], heldout=[2, 5])
+    with caplog.at_level("WARNING", logger="facemotion"):
+        whole = load_dataset(paths, "trc", **{**KW, **kw})
+        said_whole = [r.message for r in caplog.records]
+        caplog.clear()
+        s = stream_dataset(paths, "trc", d / "S.npz", **{**KW, **kw}, max_gib=MAX_GIB)
+        said_stream = [r.message for r in caplog.records]
+    assert said_stream == said_whole
+    assert any("[s2]" in m and "'M31'" in m for m in said_whole)  # the jump's other side
+    D = load_displacements(d / "S.npz")
+    A = whole.displacements.A
+    np.testing.assert_allclose(D.A, A, rtol=0, atol=FILL_RTOL * np.abs(A).max())
+    for name in ("row_sentence", "row_frame", "fill_mask", "head_residual", "neutral"):
+        np.testing.assert_array_equal(getattr(D, name), getattr(whole.displacements, name))
+    pd.testing.assert_frame_equal(s.gap_report, whole.gap_report)
+    pd.testing.assert_frame_equal(s.sentences, whole.sentences, check_exact=False, rtol=1e-12)
+    tr = whole.train.A
+    np.testing.assert_allclose(s.gram, tr.T @ tr, rtol=0, atol=1e-12 * np.abs(tr.T @ tr).max())
+    # in the dataset's order: s1, s2, s4, s5 (train), s3, s6
+    assert list(whole.sentences["frames"]) == [643, 1097, 570, 1500, 2130, 1560]
+
+
+def test_a_sentence_past_its_takes_end_is_the_whole_take_paths_error(takes):
+    d, paths = takes
+    cut = _sentences(paths)[:2] + [{"name": "late", "take": paths[1], "start_s": 5.0,
+                                    "end_s": 99.0}]
+    kw = {**KW, "train": [0, 1], "heldout": [2], "sentences": cut}
+    with pytest.raises(InputError) as whole:
+        load_dataset(paths, "trc", **kw)
+    with pytest.raises(InputError) as streamed:
+        stream_dataset(paths, "trc", d / "L.npz", **kw)
+    assert str(streamed.value) == str(whole.value) and "late" in str(whole.value)
+    assert not (d / "L.npz").exists()
+
+
 def test_what_the_streamed_loader_does_not_take_is_an_error(takes):
     d, paths = takes
-    cut = [{"name": "a", "take": paths[0], "start_s": 1.0, "end_s": 5.0}]
-    with pytest.raises(InputError, match="cut from its take"):
-        stream_dataset(paths, "trc", d / "C.npz", **{**KW, "train": [0], "heldout": []},
-                       sentences=cut)
     with pytest.raises(InputError, match="max_gib: must be positive"):
         stream_dataset(paths, "trc", d / "C.npz", **KW, max_gib=0.0)
 

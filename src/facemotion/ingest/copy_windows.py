@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from facemotion.ingest.copy_fill import copy_rows, pair_columns, take_offsets
-from facemotion.ingest.stream_scan import TakeScan, read_columns
+from facemotion.ingest.stream_scan import TakeScan
 
 
 def _aligned(points: np.ndarray, labels: list[str], rate: float, head_markers: list[str],
@@ -45,7 +45,7 @@ def pair_points(scan: TakeScan, pairs: list[tuple[str, str]], head_markers: list
     out = []
     for pair in pairs:
         cols = [scan.labels.index(m) for m in pair_names(pair, head_markers)]
-        pts = read_columns(scan.scratch, len(scan.labels), scan.n_frames, cols, block_frames)
+        pts = scan.columns(cols, block_frames)
         pts[scan.outliers[:, cols]] = np.nan
         out.append(pts)
     return out

@@ -98,15 +98,21 @@ class TakeScan:
     missing: np.ndarray        # (frames, markers) bool, missing in the file
     check: TakeCheck
     head: np.ndarray | None = field(default=None)  # (frames, head, 3), outliers NaN
+    offset: int = 0            # the first frame's in the scratch file (a sentence of a take)
 
     def points(self, a: int = 0, b: int | None = None) -> np.ndarray:
         """Frames [a, b) from the scratch file, outliers NaN (a fresh array)."""
         b = self.n_frames if b is None else b
-        out = read_frames(self.scratch, len(self.labels), a, b)
+        out = read_frames(self.scratch, len(self.labels), self.offset + a, self.offset + b)
         bad = self.outliers[a:b]
         if bad.any():
             out[bad] = np.nan
         return out
+
+    def columns(self, cols, block_frames: int) -> np.ndarray:
+        """Markers ``cols`` of every frame (frames, len(cols), 3), raw (outliers kept)."""
+        return read_columns(self.scratch, len(self.labels), self.n_frames, cols, block_frames,
+                            self.offset)
 
 
 def read_frames(scratch: Path, n: int, a: int, b: int) -> np.ndarray:
@@ -118,13 +124,15 @@ def read_frames(scratch: Path, n: int, a: int, b: int) -> np.ndarray:
     return out.reshape(b - a, n, 3)
 
 
-def read_columns(scratch: Path, n: int, F: int, cols, block_frames: int) -> np.ndarray:
-    """Markers ``cols`` of every frame (F, len(cols), 3), read in blocks of frames."""
+def read_columns(scratch: Path, n: int, F: int, cols, block_frames: int,
+                 start: int = 0) -> np.ndarray:
+    """Markers ``cols`` of frames [start, start + F) (F, len(cols), 3), read in blocks of
+    frames."""
     cols = np.asarray(cols, dtype=np.int64)
     out = np.empty((F, cols.size, 3))
     for a in range(0, F, block_frames):
         b = min(F, a + block_frames)
-        out[a:b] = read_frames(scratch, n, a, b)[:, cols]
+        out[a:b] = read_frames(scratch, n, start + a, start + b)[:, cols]
     return out
 
 
@@ -203,6 +211,12 @@ def _block_checks(blk: np.ndarray, a: int, st: _Running, limits: Limits):
                 speed = np.linalg.norm(np.diff(x, axis=0), axis=1) * st.rate / np.diff(f)
             st.cut[j] = bool(np.any(~(speed <= st.vmax)))
         st.last_x[j], st.last_f[j] = x[-1], f[-1]
+    _note_moves(blk, ok, st)
+    return far, med, ~ok
+
+
+def _note_moves(blk: np.ndarray, ok: np.ndarray, st: _Running) -> None:
+    """Each marker's first measured position, and whether a sample differs from it."""
     new = ok.any(axis=0) & np.isnan(st.first[:, 0])
     for j in np.flatnonzero(new):
         st.first[j] = blk[int(np.argmax(ok[:, j])), j]
@@ -210,7 +224,6 @@ def _block_checks(blk: np.ndarray, a: int, st: _Running, limits: Limits):
         st.any_ok = True
         with np.errstate(invalid="ignore"):
             st.moved = st.moved or bool(np.any(ok & (blk != st.first[None]).any(axis=2)))
-    return far, med, ~ok
 
 
 def _fast_outliers(columns: np.ndarray, cut: np.ndarray, far: np.ndarray, missing: np.ndarray,
@@ -257,6 +270,33 @@ def _read_pass(src, cols, st: _Running, limits: Limits, block_bytes: int, scratc
     return far, med, missing
 
 
+def _open(path, fmt, used, units, subject_prefix):
+    """The take's block source, its header as a record, and the columns of ``used``."""
+    src = take_blocks(path, fmt, units, subject_prefix)
+    where = str(src.path)
+    rec = SimpleNamespace(source=where, rate=src.rate, n_frames=src.n_frames, units=src.units,
+                          units_source=src.units_source)
+    have = set(src.labels)
+    missing_labels = [m for m in used if m not in have]
+    if missing_labels:
+        raise InputError(f"{where}: marker {missing_labels[0]!r} is not in the data")
+    at = {m: i for i, m in enumerate(src.labels)}
+    cols = np.array([at[m] for m in used])
+    whole = np.array_equal(cols, np.arange(len(src.labels)))  # every marker: no copy
+    return src, rec, None if whole else cols
+
+
+@dataclass
+class _Pass:
+    """What one read of a take found, frame by frame (the take's frames)."""
+
+    scratch: Path
+    far: np.ndarray
+    med: np.ndarray
+    missing: np.ndarray
+    st: _Running
+
+
 def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
               units: str | None = None, subject_prefix: str | None = None,
               head_markers: list[str] = (), role: str = "",
@@ -268,37 +308,73 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
     block goes to ``one_pass.add`` while the take has no missing sample, no outlier and no
     step the speed screen flags. None when it declines a block: the take needs the two
     passes (the caller reads it again with a scratch file)."""
-    src = take_blocks(path, fmt, units, subject_prefix)
-    where = str(src.path)
-    rec = SimpleNamespace(source=where, rate=src.rate, n_frames=src.n_frames, units=src.units,
-                          units_source=src.units_source)
+    src, rec, cols = _open(path, fmt, used, units, subject_prefix)
     conflict = check_header(rec, limits, units, role)
-    have = set(src.labels)
-    missing_labels = [m for m in used if m not in have]
-    if missing_labels:
-        raise InputError(f"{where}: marker {missing_labels[0]!r} is not in the data")
-    at = {m: i for i, m in enumerate(src.labels)}
-    cols = np.array([at[m] for m in used])
-    whole = np.array_equal(cols, np.arange(len(src.labels)))  # every marker: no copy
-    F, n = src.n_frames, len(used)
-    st = _Running(n, limits.max_speed_mm_s, src.rate)
-    got = _read_pass(src, None if whole else cols, st, limits, block_bytes, scratch, one_pass)
+    st = _Running(len(used), limits.max_speed_mm_s, src.rate)
+    got = _read_pass(src, cols, st, limits, block_bytes, scratch, one_pass)
     if got is None:
         return None
-    far, med, missing = got
+    found = _Pass(Path(scratch), *got, st)
+    return _finish(found, 0, src.n_frames, rec, conflict, used, limits, head_markers,
+                   block_bytes, moved=(st.any_ok, st.moved))
+
+
+def scan_sentences(path, fmt: str, sentences: list, roles: list[str], used: list[str],
+                   limits: Limits, scratch: Path, *, units: str | None = None,
+                   subject_prefix: str | None = None, head_markers: list[str] = (),
+                   block_bytes: int = 32 * 2**20) -> list[TakeScan]:
+    """Pass 1 of the sentences ``sentences`` (:class:`~facemotion.ingest.segments.Segment`
+    intervals) of one take: the take read once, in blocks, into ``scratch``; then each
+    sentence checked as ``check_take`` checks the sentence cut from the take
+    (:func:`~facemotion.ingest.segments.cut`): the per-frame findings are the take's, sliced;
+    the speed test, the face's spread, whether anything moves and the outlier counts are the
+    sentence's own."""
+    from facemotion.ingest.segments import check_grid_fits_take, frame_range
+
+    src, rec, cols = _open(path, fmt, used, units, subject_prefix)
+    where, F = rec.source, src.n_frames
+    ranges = []
+    for seg in sentences:  # every interval first, as the sentences are cut before any check
+        at = f"{where} (sentence {seg.name!r})"
+        if seg.grid_end_s is not None:
+            check_grid_fits_take(seg.grid_end_s, F, src.rate, at)
+        ranges.append(frame_range(float(seg.start_s), float(seg.end_s), src.rate, F, at))
+    st = _Running(len(used), limits.max_speed_mm_s, src.rate)
+    found = _Pass(Path(scratch), *_read_pass(src, cols, st, limits, block_bytes, scratch, None),
+                  st)
+    out = []
+    for seg, role, (i0, i1) in zip(sentences, roles, ranges, strict=True):
+        sub = SimpleNamespace(**{**vars(rec), "source": f"{where} [{seg.name}]",
+                                 "n_frames": i1 - i0})
+        conflict = check_header(sub, limits, units, role)
+        out.append(_finish(found, i0, i1, sub, conflict, used, limits, head_markers,
+                           block_bytes))
+    return out
+
+
+def _finish(found: _Pass, i0: int, i1: int, rec, conflict, used, limits: Limits,
+            head_markers, block_bytes: int, moved=None) -> TakeScan:
+    """The checks that need a whole take (or sentence: frames [i0, i1) of the pass), from what
+    the pass kept: the exact speed test, the spread, whether anything moves, the outliers."""
+    where, n, F = rec.source, len(used), i1 - i0
+    far, missing = found.far[i0:i1], found.missing[i0:i1]
     step = max(1, block_bytes // (24 * n))
-    cut = np.flatnonzero(st.cut)
+    cut = np.flatnonzero(found.st.cut)
     if cut.size:
-        fast, top = _fast_outliers(read_columns(scratch, n, F, cut, step), cut, far, missing,
-                                   src.rate, limits.max_speed_mm_s)
+        fast, top = _fast_outliers(
+            read_columns(found.scratch, n, F, cut, step, i0), cut, far, missing, rec.rate,
+            limits.max_speed_mm_s)
         outliers = far | fast
-    else:  # no step the screen flags: no sample is too fast (zeros, never written)
+    else:  # no step the screen flags: no sample is too fast
         fast, top, outliers = np.zeros((F, n), dtype=bool), np.zeros(n), far
-    spread = _check_spread(med, rec, limits)
-    if st.any_ok and not st.moved:
+    spread = _check_spread(found.med[i0:i1], rec, limits)
+    any_ok, moves = moved if moved is not None else _moves(found.scratch, n, i0, i1, step)
+    if any_ok and not moves:
         raise InputError(f"{where}: no marker moves in this take (every sample equals the "
                          "marker's first): a frozen or placeholder take")
-    notes = outlier_notes(outliers, far, fast, st.far_max, top, used, src.rate, limits)
+    far_max = found.st.far_max if moved is not None or not far.any() else \
+        _far_max(found.scratch, n, i0, i1, step)
+    notes = outlier_notes(outliers, far, fast, far_max, top, used, rec.rate, limits)
     measured = missing.size - int(np.count_nonzero(missing))
     if measured and outliers.sum() > MAX_OUTLIER_FRACTION * measured:
         raise InputError(f"{where}: {outliers.sum()} of the take's {measured} measured samples "
@@ -309,14 +385,37 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
             raise InputError(f"{where}: {notes[0]} ({limits.name('outliers')} is 'error')")
         for note in notes:
             log.warning("%s: %s; treated as gaps", where, note)
-    check = TakeCheck(outliers, src.units, src.units_source, conflict, spread)
-    scan = TakeScan(where, list(used), src.rate, F, Path(scratch), outliers, missing, check)
+    check = TakeCheck(outliers, rec.units, rec.units_source, conflict, spread)
+    scan = TakeScan(where, list(used), rec.rate, F, found.scratch, outliers, missing, check,
+                    offset=i0)
     if head_markers:
         hcols = [used.index(h) for h in head_markers]
-        h = read_columns(scratch, n, F, hcols, step)
+        h = scan.columns(hcols, step)
         h[outliers[:, hcols]] = np.nan
         scan.head = h
     return scan
+
+
+def _moves(scratch: Path, n: int, i0: int, i1: int, step: int) -> tuple[bool, bool]:
+    """(any sample measured, any differs from its marker's first) in frames [i0, i1)."""
+    st = _Running(n, np.inf, 1.0)
+    for a in range(i0, i1, step):
+        blk = read_frames(scratch, n, a, min(i1, a + step))
+        _note_moves(blk, finite_samples(blk), st)
+    return st.any_ok, st.moved
+
+
+def _far_max(scratch: Path, n: int, i0: int, i1: int, step: int) -> np.ndarray:
+    """Each marker's largest distance from the face centre in frames [i0, i1) (as
+    :func:`_block_checks` measures it)."""
+    top = np.zeros(n)
+    for a in range(i0, i1, step):
+        blk = read_frames(scratch, n, a, min(i1, a + step))
+        ok = finite_samples(blk)
+        dist, enough = centre_distances(SimpleNamespace(points=blk), ok)
+        d0 = dist if enough.all() and ok.all() else np.nan_to_num(dist, nan=0.0)
+        top = np.maximum(top, d0.max(axis=0))
+    return top
 
 
 def _check_spread(med: np.ndarray, rec, limits: Limits) -> float:

@@ -24,10 +24,10 @@ flags ends it (what was written is dropped) and the take is read again the two-p
 blocks' sizes, the log says the bound and the sizes, and a gap whose fill needs a window larger
 than the bound is an error naming it.
 ``copy_markers`` are copied in each window after its alignment, from offsets found by
-:mod:`facemotion.ingest.copy_windows`. Not streamed (an InputError says so): sentences cut from
-takes (``segments``). Readers without a block reader
-(formats other than TRC and Intel C3D, and files with a subject prefix) read the take whole,
-then give it in blocks.
+:mod:`facemotion.ingest.copy_windows`. Sentences cut from takes (``segments``): a take is read
+once for all its sentences, each then checked and streamed on its own frames. Readers without
+a block reader (formats other than TRC and Intel C3D, and files with a subject prefix) read
+the take whole, then give it in blocks.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from threadpoolctl import threadpool_limits
 
 from facemotion.errors import InputError
 from facemotion.ingest.gap_windows import GapPlan, fill_window, plan_gaps
-from facemotion.ingest.stream_scan import TakeScan, read_columns, scan_take
+from facemotion.ingest.stream_scan import TakeScan, scan_take
 from facemotion.ingest.validation import Limits
 
 log = logging.getLogger("facemotion")
@@ -99,13 +99,6 @@ class Budget:
             raise InputError(f"max_gib = {max_gib:g}: too small for {n_used} markers "
                              f"(a window of {window} frames)")
         return cls(max_gib, text, frames, window)
-
-
-def _check_streamable(chosen) -> None:
-    cut = [s for s in chosen if not s.whole]
-    if cut:
-        raise InputError(f"{cut[0].take}: sentence {cut[0].name!r} is cut from its take; the "
-                         "streamed loader reads whole takes only; load the dataset whole")
 
 
 def _same_layout(paths: list[str], fmt: str, subject_prefix) -> list[str]:
@@ -181,8 +174,7 @@ def same_shape(scans: list[TakeScan], limits: Limits, budget: Budget,
     per_col = max(1, int(budget.max_gib * 2**30 / 4 / (24 * s0.n_frames)))
     ref = np.empty((n, 3))
     for c in range(0, n, per_col):
-        x = read_columns(s0.scratch, n, s0.n_frames, np.arange(c, min(n, c + per_col)),
-                         budget.frames)
+        x = s0.columns(np.arange(c, min(n, c + per_col)), budget.frames)
         x[s0.outliers[:, c:c + per_col]] = np.nan
         x[~np.isfinite(x)] = np.nan
         with np.errstate(all="ignore"), warnings.catch_warnings():
@@ -316,7 +308,6 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
                                               else recordings)]
     chosen = [items[i] for i in list(train) + list(heldout)]
     roles = ["train"] * len(train) + ["heldout"] * len(heldout)
-    _check_streamable(chosen)
     where = chosen[0].take
     labels = _same_layout([s.take for s in chosen], fmt, subject_prefix)
     keep, used = check_marker_lists(labels, where, head_markers, exclude_markers,
@@ -349,7 +340,7 @@ def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units
     one = _one_pass(chosen[0].take, fmt, used, keep, out, scratch / "take0.f8", roles[0],
                     budget, limits, units=units, subject_prefix=subject_prefix,
                     neutral=neutral, head_markers=list(head_markers)
-                    ) if len(chosen) == 1 else None
+                    ) if len(chosen) == 1 and chosen[0].whole else None
     if one is not None:
         try:
             return _second_pass([one[0]], chosen, roles, keep, used, out, budget, limits,
@@ -359,17 +350,38 @@ def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units
         except BaseException:
             one[1].abort()
             raise
-    scans = []
-    for i, (seg, role) in enumerate(zip(chosen, roles, strict=True)):
-        log.info("reading %s (%d/%d, in blocks)", seg.take, i + 1, len(chosen))
-        scans.append(scan_take(seg.take, fmt, used, limits, scratch / f"take{i}.f8",
-                               units=units, subject_prefix=subject_prefix,
-                               head_markers=list(head_markers), role=role,
-                               block_bytes=budget.text_bytes))
+    scans = _first_pass(chosen, roles, fmt, used, limits, scratch, budget, units=units,
+                        subject_prefix=subject_prefix, head_markers=list(head_markers))
     return _second_pass(scans, chosen, roles, keep, used, out, budget, limits,
                         head_markers=list(head_markers), where=where, neutral=neutral,
                         max_interp_s=max_interp_s, long_gaps=long_gaps,
                         reference=head_reference, copies=copies)
+
+
+def _first_pass(chosen, roles, fmt, used, limits, scratch, budget, *, units, subject_prefix,
+                head_markers) -> list[TakeScan]:
+    """Every take's first pass, in the dataset's order; a take cut into sentences is read
+    once for all of its sentences (:func:`facemotion.ingest.stream_scan.scan_sentences`)."""
+    from facemotion.ingest.stream_scan import scan_sentences
+
+    takes = list(dict.fromkeys(s.take for s in chosen))
+    scans: list[TakeScan | None] = [None] * len(chosen)
+    opts = dict(units=units, subject_prefix=subject_prefix, head_markers=head_markers,
+                block_bytes=budget.text_bytes)
+    for k, take in enumerate(takes):
+        log.info("reading %s (%d/%d, in blocks)", take, k + 1, len(takes))
+        mine = [i for i, s in enumerate(chosen) if s.take == take]
+        cut = [i for i in mine if not chosen[i].whole]
+        for i in mine:
+            if chosen[i].whole:
+                scans[i] = scan_take(take, fmt, used, limits, scratch / f"take{i}.f8",
+                                     role=roles[i], **opts)
+        if cut:
+            got = scan_sentences(take, fmt, [chosen[i] for i in cut], [roles[i] for i in cut],
+                                 used, limits, scratch / f"cut{k}.f8", **opts)
+            for i, scan in zip(cut, got, strict=True):
+                scans[i] = scan
+    return scans
 
 
 def _one_pass(take, fmt, used, keep, out, scratch, role, budget, limits, *, units,
