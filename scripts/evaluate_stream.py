@@ -14,7 +14,7 @@ def main(sm, log, prov):
     with np.load(sm.input.gram) as g:
         G, rows, labels = g["gram"], int(g["rows"]), [str(x) for x in g["labels"]]
     ranking = rank_from_gram(G, rows, labels)  # every pivot, as the study ranks
-    parts = list(sm.input.heldout)
+    parts = list(zip(sm.input.heldout, sm.params.heldout, strict=True))
     curve = streamed_error_curve(ranking, heldout_blocks(parts), labels, k_max=sm.params.k_max)
     write_table(curve, sm.output.curve, "error_curve", prov)
     log.info("error curve for k = 1..%d over %d held-out takes, read in blocks", len(curve) - 1,

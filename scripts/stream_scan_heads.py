@@ -1,11 +1,10 @@
-"""One take of a scattered streamed load, step 1: read in blocks, checked, its head points (and
-the copy_markers pairs' points)."""
-
-import numpy as np
+"""One take of a scattered streamed load, step 1: read in blocks, each of its sentences checked;
+their head points and the copy_markers pairs' points."""
 
 from facemotion.ingest.copy_fill import parse_copy_markers
 from facemotion.ingest.loading import check_marker_lists
-from facemotion.ingest.scatter import scan_heads
+from facemotion.ingest.scatter import heads_arrays, scan_heads
+from facemotion.ingest.segments import Segment
 from facemotion.io.npz import npz_bytes
 from facemotion.io.registry import read_labels
 from facemotion.study.adapter import run_step
@@ -19,17 +18,15 @@ def main(sm, log, prov):
     labels = read_labels(take, ds["format"], ds["subject_prefix"])
     _, used = check_marker_lists(labels, take, ds["head_markers"], ds["exclude_markers"],
                                  ds["include_markers"])
-    pairs = parse_copy_markers(ds["copy_markers"], "copy_markers")
-    head, rate, pair_points = scan_heads(
+    sentences = sm.params.take["sentences"]
+    heads, rate, pairs = scan_heads(
         take, ds["format"], used, ds["head_markers"],
+        sentences=None if sentences is None else [Segment.from_param(s) for s in sentences],
         limits=limits_from_config(sm.params.gaps, sm.params.checks), units=ds["units"],
-        subject_prefix=ds["subject_prefix"], max_gib=sm.params.max_gib, copy_markers=pairs)
+        subject_prefix=ds["subject_prefix"], max_gib=sm.params.max_gib,
+        copy_markers=parse_copy_markers(ds["copy_markers"], "copy_markers"))
     prov.inputs = [take]
-    arrays = {"rate": np.array(rate)}
-    if head is not None:
-        arrays["head"] = head
-    for j, pts in enumerate(pair_points):
-        arrays[f"pair{j}"] = pts
+    arrays = heads_arrays(heads, rate, pairs, sm.params.take["positions"])
     write_artifact(sm.output.npz, npz_bytes(arrays), "stream_heads", prov)
 
 

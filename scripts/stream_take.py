@@ -1,9 +1,11 @@
-"""One take of a scattered streamed load, step 3: its rows of A on disk and their Gram."""
+"""One take of a scattered streamed load, step 3: its sentences' rows of A on disk, and the Gram of
+its training rows."""
 
 import numpy as np
 
 from facemotion.ingest.copy_fill import parse_copy_markers
-from facemotion.ingest.scatter import load_take
+from facemotion.ingest.scatter import TakePart, load_take
+from facemotion.ingest.segments import Segment
 from facemotion.io.npz import npz_bytes
 from facemotion.study.adapter import run_step
 from facemotion.study.provenance import sidecar_for_existing, write_artifact
@@ -15,8 +17,11 @@ def main(sm, log, prov):
     log.info("%s: streamed, memory.max_gib = %g", take, sm.params.max_gib)
     ref = np.load(sm.input.reference)
     gaps = sm.params.gaps
+    sentences = sm.params.take["sentences"]
+    plan = TakePart(take, None if sentences is None else [Segment.from_param(x) for x in sentences],
+                    list(sm.params.take["roles"]), list(sm.params.take["positions"]))
     part = load_take(
-        take, ds["format"], sm.output.npz,
+        plan, ds["format"], sm.output.npz,
         head_reference=ref["reference"] if "reference" in ref else None,
         units=ds["units"], head_markers=ds["head_markers"],
         exclude_markers=ds["exclude_markers"], include_markers=ds["include_markers"],
@@ -27,8 +32,8 @@ def main(sm, log, prov):
         copy_medians=ref["copy_medians"] if "copy_medians" in ref else None,
         max_gib=sm.params.max_gib)
     prov.inputs = [take, sm.input.reference]
-    log.info("%s (%s): %d rows x %d markers", take, sm.params.take["role"], part.train_rows,
-             len(part.labels))
+    log.info("%s: %d sentence(s), %d training rows x %d markers", take, len(plan.roles),
+             part.train_rows, len(part.labels))
     sidecar_for_existing(sm.output.npz, "displacements", prov)
     write_artifact(sm.output.gram, npz_bytes({"gram": part.gram,
                                               "rows": np.array(part.train_rows),

@@ -109,9 +109,10 @@ def test_a_scattered_load_gathers_the_single_jobs_median_and_rows(tmp_path):
     paths, keep, used = _takes(tmp_path, lose_all_in=(1,))
     pairs = [("13", "11")]
     scanned = [scatter.scan_heads(p, "c3d", used, HEAD, copy_markers=pairs) for p in paths]
-    ref = scatter.gather_reference([s[0] for s in scanned], [s[1] for s in scanned], HEAD, "S1")
-    medians = scatter.gather_copy_medians([s[2] for s in scanned], pairs, scanned[0][1], HEAD,
-                                          ref)
+    heads, points, rates = scatter.by_position(
+        [scatter.heads_arrays(h, r, pp, [i]) for i, (h, r, pp) in enumerate(scanned)], 1)
+    ref = scatter.gather_reference(heads, rates, HEAD, "S1")
+    medians = scatter.gather_copy_medians(points, pairs, rates[0], HEAD, ref)
     assert medians.shape == (1, 3)
     scans, reference = _scans(tmp_path, paths, used)
     np.testing.assert_array_equal(ref, reference)
@@ -124,7 +125,8 @@ def test_a_scattered_load_gathers_the_single_jobs_median_and_rows(tmp_path):
     A = load_displacements(tmp_path / "single.npz").A
     start = 0
     for i, p in enumerate(paths):
-        part = scatter.load_take(p, "c3d", tmp_path / f"part{i}.npz", head_reference=ref,
+        part = scatter.load_take(scatter.TakePart(p, None, ["train"], [i]), "c3d",
+                                 tmp_path / f"part{i}.npz", head_reference=ref,
                                  copy_medians=medians, **opts)
         rows = load_displacements(tmp_path / f"part{i}.npz").A
         np.testing.assert_array_equal(rows, A[start:start + len(rows)])

@@ -190,30 +190,73 @@ def test_a_scattered_load_gathers_the_single_jobs_gram_and_pivots(takes):
     """One job per take (head points, reference, take), then the sum: the single job's G to
     round-off, the same pivots; each take's part of A is the single job's rows."""
     from facemotion.ingest import scatter
+    from facemotion.ingest.segments import Segment
 
     d, paths = takes
     roles = ["train", "train", "heldout"]
+    parts = scatter.plan([Segment.from_param(p) for p in paths], roles)
+    assert [p.sentences for p in parts] == [None] * 3 and [p.positions for p in parts] == [
+        [0], [1], [2]]
     used = [f"M{j:02d}" for j in range(40)] + HEAD
-    scans = [scatter.scan_heads(p, "trc", used, HEAD, units="mm") for p in paths]
-    ref = scatter.gather_reference([s[0] for s in scans], [s[1] for s in scans], HEAD,
-                                   paths[0])
+    scans = [scatter.scan_heads(p.take, "trc", used, HEAD, units="mm") for p in parts]
+    heads, _, rates = scatter.by_position(
+        [scatter.heads_arrays(h, r, pr, p.positions) for (h, r, pr), p in zip(scans, parts,
+                                                                              strict=True)], 0)
+    ref = scatter.gather_reference(heads, rates, HEAD, paths[0])
     opts = dict(units="mm", head_markers=HEAD, exclude_markers=HEAD, max_gib=MAX_GIB)
-    parts = [scatter.load_take(p, "trc", d / f"part{i}.npz", head_reference=ref, **opts)
-             for i, p in enumerate(paths)]
-    G = scatter.gather_gram([s.gram for s in parts], roles)
+    loaded = [scatter.load_take(p, "trc", d / f"part{i}.npz", head_reference=ref, **opts)
+              for i, p in enumerate(parts)]
+    G = scatter.gather_gram([s.gram for s in loaded], [s.train_rows for s in loaded])
     single = stream_dataset(paths, "trc", d / "single.npz", **KW, max_gib=MAX_GIB)
     np.testing.assert_allclose(G, single.gram, rtol=0, atol=1e-13 * np.abs(G).max())
-    assert not np.array_equal(G, parts[0].gram)  # the sum, not one take
-    r_g = rank_from_gram(G, sum(s.train_rows for s in parts[:2]), parts[0].labels)
+    assert not np.array_equal(G, loaded[0].gram)  # the sum, not one take
+    assert loaded[2].train_rows == 0 and not loaded[2].gram.any()  # held out: no Gram
+    r_g = rank_from_gram(G, sum(s.train_rows for s in loaded), loaded[0].labels)
     r_s = rank_from_gram(single.gram, single.train_rows, single.labels)
     assert list(r_g.order) == list(r_s.order)
-    A = load_displacements(d / "single.npz").A
-    rows = np.cumsum([0] + [s.train_rows for s in parts])
+    A = load_displacements(d / "single.npz")
     for i in range(3):
         np.testing.assert_array_equal(load_displacements(d / f"part{i}.npz").A,
-                                      A[rows[i]:rows[i + 1]])
-    with pytest.raises(InputError, match="no training take"):
-        scatter.gather_gram([s.gram for s in parts], ["heldout"] * 3)
+                                      A.A[A.row_sentence == i])
+    with pytest.raises(InputError, match="no training sentence"):
+        scatter.gather_gram([s.gram for s in loaded], [0, 0, 0])
+
+
+def test_a_scattered_load_of_sentences_cut_from_takes(takes):
+    """Takes cut into sentences, training and held-out sentences in the same take: one job per
+    take reads it once for its sentences; gathered in the dataset's order, the head reference,
+    the Gram and the held-out rows are the single job's."""
+    from facemotion.ingest import scatter
+    from facemotion.ingest.segments import Segment
+
+    d, paths = takes
+    sentences = [Segment.from_param(s) for s in _sentences(paths)]
+    train, heldout = [0, 1, 3, 4], [2, 5]
+    order = train + heldout
+    roles = ["train"] * 4 + ["heldout"] * 2
+    parts = scatter.plan([sentences[i] for i in order], roles)
+    assert [p.positions for p in parts] == [[0, 1, 4], [2], [3, 5]]
+    assert [p.roles for p in parts] == [["train", "train", "heldout"], ["train"],
+                                        ["train", "heldout"]]
+    used = [f"M{j:02d}" for j in range(40)] + HEAD
+    files = [scatter.heads_arrays(*scatter.scan_heads(p.take, "trc", used, HEAD,
+                                                      sentences=p.sentences, units="mm"),
+                                  p.positions) for p in parts]
+    heads, _, rates = scatter.by_position(files, 0)
+    ref = scatter.gather_reference(heads, rates, HEAD, paths[0])
+    kw = {**KW, "sentences": _sentences(paths), "train": train, "heldout": heldout}
+    single = stream_dataset(paths, "trc", d / "single_cut.npz", **kw, max_gib=MAX_GIB)
+    opts = dict(units="mm", head_markers=HEAD, exclude_markers=HEAD, max_gib=MAX_GIB)
+    loaded = [scatter.load_take(p, "trc", d / f"cut{i}.npz", head_reference=ref, **opts)
+              for i, p in enumerate(parts)]
+    G = scatter.gather_gram([s.gram for s in loaded], [s.train_rows for s in loaded])
+    np.testing.assert_allclose(G, single.gram, rtol=0, atol=1e-13 * np.abs(G).max())
+    A = load_displacements(d / "single_cut.npz")
+    blocks = scatter.heldout_blocks([(d / f"cut{i}.npz", p.heldout) for i, p in enumerate(parts)],
+                                    block_rows=300)
+    held = np.concatenate([b.copy() for b in blocks()])  # the blocks share one buffer
+    # held-out sentences in the dataset's order (s3, s6) are the parts' (take 0's, take 2's)
+    np.testing.assert_array_equal(held, A.A[A.row_sentence >= 4])
 
 
 def test_one_take_without_head_markers_loads_in_one_pass(tmp_path, monkeypatch, caplog):

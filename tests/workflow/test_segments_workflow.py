@@ -91,7 +91,9 @@ def block_study(tmp_path_factory):
         "textgrid:takes/{stem}.TextGrid#sentence\t13=11\n")
     work = tmp_path_factory.mktemp("run")
     targets = [f"results/smoke/{d}/{rel}" for d in DATASETS
-               for rel in ("data/displacements.npz", "qr/rank.tsv")]
+               for rel in ("data/displacements.npz", "qr/rank.tsv", "qr/r_values.tsv",
+                           "eval/error_curve.tsv", "stream/r_values.tsv",
+                           "stream/error_curve.tsv")]
     run_snakemake(work, *targets,
                   extra_config=f"subjects: {sheet}\ndefault_datasets: true\nsweeps: {{}}\n")
     return work / "results" / "smoke"
@@ -125,3 +127,21 @@ def test_cut_takes_give_the_same_ranking(block_study):
     rank = {d: pd.read_csv(block_study / d / "qr" / "rank.tsv", sep="\t") for d in DATASETS}
     for d in ("events", "textgrid"):
         assert rank[d].equals(rank["split"])
+
+
+def test_the_stream_target_reads_each_take_once_for_its_sentences(block_study):
+    """The scattered streamed load (target `stream`): one job per take (block1, block2; each
+    holds training and held-out sentences), its r values and held-out error curve the
+    whole-take rules' (to the digits the tables print), for the takes cut by events and by the
+    TextGrid as for the sentences in one file each."""
+    for d in DATASETS:
+        takes = sorted(p.name for p in (block_study / d / "stream" / "takes").glob("t*.gram.npz"))
+        assert takes == (["t001.gram.npz", "t002.gram.npz"] if d != "split"
+                         else [f"t{k:03d}.gram.npz" for k in range(1, 7)])
+        for streamed, whole, key in (("stream/r_values.tsv", "qr/r_values.tsv", "marker"),
+                                     ("stream/error_curve.tsv", "eval/error_curve.tsv",
+                                      "main_markers")):
+            a = pd.read_csv(block_study / d / streamed, sep="\t", dtype={key: str})
+            b = pd.read_csv(block_study / "split" / whole, sep="\t", dtype={key: str})
+            assert list(a[key]) == list(b[key]), (d, streamed)
+            pd.testing.assert_frame_equal(a, b[a.columns], check_exact=False, rtol=1e-8, atol=0)

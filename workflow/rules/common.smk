@@ -9,6 +9,7 @@ import yaml
 from snakemake.utils import min_version
 
 from facemotion.errors import InputError
+from facemotion.ingest.scatter import plan as scatter_plan
 from facemotion.io.registry import read_labels
 from facemotion.io.trc import trc_frame_count
 from facemotion.papers.lucero_munhall import TABLE_I
@@ -515,22 +516,32 @@ def print_closing_summary():
 
 
 # ---- streamed loading, one job per take (rules/stream.smk) ----
-def stream_take_ids(dataset):
-    """The dataset's takes as t001, t002, ... in its order (training, then held out)."""
+def stream_parts(dataset):
+    """The dataset's takes (files), each with its sentences and their roles
+    (facemotion.ingest.scatter.plan), in the order they first appear."""
     ds = DATASETS[dataset]
-    return [f"t{i + 1:03d}" for i in range(len(ds.train) + len(ds.heldout))]
+    sentences = SUBJECTS[ds.subject].sentences
+    order = list(ds.train) + list(ds.heldout)
+    roles = ["train"] * len(ds.train) + ["heldout"] * len(ds.heldout)
+    return scatter_plan([sentences[i] for i in order], roles)
+
+
+def stream_take_ids(dataset):
+    """The dataset's takes as t001, t002, ..."""
+    return [f"t{i + 1:03d}" for i in range(len(stream_parts(dataset)))]
 
 
 def stream_params(wildcards):
-    """A take's file and role, and the dataset's loading settings."""
-    ds = DATASETS[wildcards.dataset]
-    order = list(ds.train) + list(ds.heldout)
-    i = int(wildcards.take[1:]) - 1
-    subj = SUBJECTS[ds.subject]
+    """A take's file, sentences and roles, and the dataset's loading settings."""
+    part = stream_parts(wildcards.dataset)[int(wildcards.take[1:]) - 1]
     return {
         "ds": dataset_params(SUBJECTS, DATASETS, wildcards.dataset),
-        "recording": subj.recordings[order[i]],
-        "role": "train" if i < len(ds.train) else "heldout",
+        "recording": part.take,
+        "sentences": (
+            None if part.sentences is None else [s.to_param() for s in part.sentences]
+        ),
+        "roles": part.roles,
+        "positions": part.positions,
     }
 
 
@@ -542,13 +553,23 @@ def stream_heads(wildcards):
     )
 
 
+def stream_heldout(dataset):
+    """The takes with held-out sentences: {take id: the held-out sentences' indices in the
+    take's part of A}."""
+    ids = stream_take_ids(dataset)
+    return {
+        ids[k]: part.heldout
+        for k, part in enumerate(stream_parts(dataset))
+        if part.heldout
+    }
+
+
 def stream_heldout_parts(wildcards):
-    """The held-out takes' parts of A, in the dataset's order."""
-    ds = DATASETS[wildcards.dataset]
+    """The parts of A of the takes with held-out sentences."""
     return expand(
         "<results>/{dataset}/stream/takes/{take}.npz",
         dataset=wildcards.dataset,
-        take=stream_take_ids(wildcards.dataset)[len(ds.train) :],
+        take=list(stream_heldout(wildcards.dataset)),
     )
 
 

@@ -103,11 +103,6 @@ rule gather_gram:
     conda:
         "../envs/facemotion.yaml"
     threads: 1
-    params:
-        roles=lambda wc: [
-            "train" if i < len(DATASETS[wc.dataset].train) else "heldout"
-            for i in range(len(stream_take_ids(wc.dataset)))
-        ],
     message:
         "gather_gram {wildcards.dataset}: G = sum of the training takes' Grams"
     script:
@@ -151,6 +146,7 @@ rule evaluate_stream:
         runtime=30,
     params:
         k_max=config["qr"]["k_max"],
+        heldout=lambda wc: list(stream_heldout(wc.dataset).values()),
     message:
         "evaluate_stream {wildcards.dataset}: held-out error against k, block by block (L&M Fig. 10)"
     script:
