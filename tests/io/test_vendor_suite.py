@@ -186,6 +186,21 @@ def test_openface_with_its_rate_declared_reads_as_numpy_parses_it(tmp_path):
         read_recording(suite(QTM_HEAD), rate=30)
 
 
+def test_openface_labels_come_from_the_header_alone(tmp_path):
+    """The label reader gives the reader's labels without reading (or timing) the frames:
+    a file whose time stamps the reader refuses still has its labels."""
+    from facemotion.io.registry import read_labels
+
+    assert read_labels(suite(OPENFACE), "openface_csv") == read_recording(
+        suite(OPENFACE), rate=30).labels
+    lines = suite(OPENFACE).read_text().splitlines()
+    (tmp_path / "head_only.csv").write_text(lines[0] + "\n")
+    assert read_labels(tmp_path / "head_only.csv", "openface_csv") == [f"L{k}" for k in range(68)]
+    (tmp_path / "bad.csv").write_text("frame,timestamp\n1,0\n")
+    with pytest.raises(InputError, match="no 'success' column"):
+        read_labels(tmp_path / "bad.csv", "openface_csv")
+
+
 def test_low_confidence_openface_frames_are_gaps(tmp_path):
     """30 frames tracked (success 1) at confidence 0.05 are gaps, in the gap report too."""
     from facemotion.ingest.gaps import gap_report

@@ -78,7 +78,7 @@ def plan(sentences: list, roles: list[str]) -> list[TakePart]:
 def scan_heads(take: str, fmt: str, used: list[str], head_markers: list[str], *,
                sentences: list | None = None, limits: Limits | None = None,
                units: str | None = None, subject_prefix: str | None = None, scratch_dir=None,
-               max_gib: float = MAX_GIB, copy_markers=()
+               max_gib: float = MAX_GIB, copy_markers=(), rate: float | None = None
                ) -> tuple[list[np.ndarray | None], float, list[list[np.ndarray]]]:
     """Step 1 for one take: per sentence (``sentences`` of the take, default the whole take)
     its head markers' points (frames, head, 3; outliers NaN; None without head markers); the
@@ -90,7 +90,7 @@ def scan_heads(take: str, fmt: str, used: list[str], head_markers: list[str], *,
 
     budget = Budget.of(max_gib, len(used))
     opts = dict(units=units, subject_prefix=subject_prefix, head_markers=list(head_markers),
-                block_bytes=budget.text_bytes)
+                block_bytes=budget.text_bytes, rate=rate)
     with tempfile.TemporaryDirectory(dir=scratch_dir) as tmp:
         scratch = Path(tmp) / "take.f8"
         if sentences is None:

@@ -50,10 +50,11 @@ class WholeTake:
     """A format without a block reader: the take read whole, then given in blocks (memory is
     the reader's, not bounded by the stream's setting)."""
 
-    def __init__(self, path, fmt, units, subject_prefix):
+    def __init__(self, path, fmt, units, subject_prefix, rate=None):
         from facemotion.io.registry import read_recording
 
-        self.rec = read_recording(path, fmt, units=units, subject_prefix=subject_prefix)
+        self.rec = read_recording(path, fmt, units=units, subject_prefix=subject_prefix,
+                                  rate=rate)
         if self.rec.filled.any():
             raise InputError(f"{path}: the file flags samples as filled by its producer; the "
                              "streamed loader does not carry those flags: load it whole")
@@ -67,22 +68,33 @@ class WholeTake:
             yield a, self.rec.points[a:a + step]
 
 
-def take_blocks(path, fmt: str, units: str | None = None, subject_prefix: str | None = None):
+def take_blocks(path, fmt: str, units: str | None = None, subject_prefix: str | None = None,
+                rate: float | None = None):
     """The take's header and a ``blocks(block_bytes)`` iterator of (first frame, points):
     the block readers of TRC (:mod:`facemotion.io.trc_blocks`) and of Intel C3D
-    (:mod:`facemotion.io.c3d_blocks`), else the take read whole (:class:`WholeTake`)."""
+    (:mod:`facemotion.io.c3d_blocks`), else the take read whole (:class:`WholeTake`).
+    ``rate``: the declared frame rate, as :func:`facemotion.io.registry.read_recording` takes
+    it."""
+    from facemotion.io.registry import FORMATS, check_rate
+
+    src = None
     if fmt == "trc" and not subject_prefix:
         from facemotion.io.trc_blocks import open_trc_blocks
 
-        return open_trc_blocks(path, units)
-    if fmt == "c3d" and not subject_prefix:
+        src = open_trc_blocks(path, units)
+    elif fmt == "c3d" and not subject_prefix:
         from facemotion.io.base import check_readable
         from facemotion.io.c3d import c3d_layout
         from facemotion.io.c3d_blocks import open_c3d_blocks
 
         if c3d_layout(check_readable(path)).processor == "Intel":
-            return open_c3d_blocks(path, units)
-    return WholeTake(path, fmt, units, subject_prefix)
+            src = open_c3d_blocks(path, units)
+    if src is None:
+        return WholeTake(path, fmt, units, subject_prefix, rate)
+    if rate is not None:
+        FORMATS[fmt].check_stated_rate(path, src.rate,
+                                       check_rate(rate, f"{path} (declared rate)"))
+    return src
 
 
 @dataclass
@@ -270,9 +282,9 @@ def _read_pass(src, cols, st: _Running, limits: Limits, block_bytes: int, scratc
     return far, med, missing
 
 
-def _open(path, fmt, used, units, subject_prefix):
+def _open(path, fmt, used, units, subject_prefix, rate):
     """The take's block source, its header as a record, and the columns of ``used``."""
-    src = take_blocks(path, fmt, units, subject_prefix)
+    src = take_blocks(path, fmt, units, subject_prefix, rate)
     where = str(src.path)
     rec = SimpleNamespace(source=where, rate=src.rate, n_frames=src.n_frames, units=src.units,
                           units_source=src.units_source)
@@ -300,7 +312,8 @@ class _Pass:
 def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
               units: str | None = None, subject_prefix: str | None = None,
               head_markers: list[str] = (), role: str = "",
-              block_bytes: int = 32 * 2**20, one_pass=None) -> TakeScan | None:
+              block_bytes: int = 32 * 2**20, one_pass=None,
+              rate: float | None = None) -> TakeScan | None:
     """Pass 1 of one take: read in blocks, every check of ``check_take`` on the markers
     ``used``, the raw numbers appended to ``scratch`` (see the module notes).
 
@@ -308,7 +321,7 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
     block goes to ``one_pass.add`` while the take has no missing sample, no outlier and no
     step the speed screen flags. None when it declines a block: the take needs the two
     passes (the caller reads it again with a scratch file)."""
-    src, rec, cols = _open(path, fmt, used, units, subject_prefix)
+    src, rec, cols = _open(path, fmt, used, units, subject_prefix, rate)
     conflict = check_header(rec, limits, units, role)
     st = _Running(len(used), limits.max_speed_mm_s, src.rate)
     got = _read_pass(src, cols, st, limits, block_bytes, scratch, one_pass)
@@ -322,7 +335,8 @@ def scan_take(path, fmt: str, used: list[str], limits: Limits, scratch: Path, *,
 def scan_sentences(path, fmt: str, sentences: list, roles: list[str], used: list[str],
                    limits: Limits, scratch: Path, *, units: str | None = None,
                    subject_prefix: str | None = None, head_markers: list[str] = (),
-                   block_bytes: int = 32 * 2**20) -> list[TakeScan]:
+                   block_bytes: int = 32 * 2**20, rate: float | None = None
+                   ) -> list[TakeScan]:
     """Pass 1 of the sentences ``sentences`` (:class:`~facemotion.ingest.segments.Segment`
     intervals) of one take: the take read once, in blocks, into ``scratch``; then each
     sentence checked as ``check_take`` checks the sentence cut from the take
@@ -331,7 +345,7 @@ def scan_sentences(path, fmt: str, sentences: list, roles: list[str], used: list
     sentence's own."""
     from facemotion.ingest.segments import check_grid_fits_take, frame_range
 
-    src, rec, cols = _open(path, fmt, used, units, subject_prefix)
+    src, rec, cols = _open(path, fmt, used, units, subject_prefix, rate)
     where, F = rec.source, src.n_frames
     ranges = []
     for seg in sentences:  # every interval first, as the sentences are cut before any check

@@ -290,7 +290,7 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
                    long_gaps: str = "pca", neutral: str = "first_frame",
                    limits: Limits | None = None, sentences: list | None = None,
                    subject_prefix: str | None = None, copy_markers=(),
-                   markers_named_in: str = "the subject sheet",
+                   markers_named_in: str = "the subject sheet", rate: float | None = None,
                    max_gib: float = MAX_GIB,
                    head_reference: np.ndarray | None = None,
                    copy_medians: list | None = None) -> StreamedDataset:
@@ -298,6 +298,8 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
     written to the displacements file ``out``, the training rows' Gram returned.
     ``head_reference``: the head markers' reference (:func:`reference_from_heads` of every
     take of the dataset) when this call loads a part of it (one job of a scattered load), and
+    ``rate``: the declared frame rate (the sheet's ``rate``), as
+    :func:`~facemotion.ingest.loading.load_dataset` takes it.
     ``copy_medians`` the copy_markers pairs' medians over the whole dataset
     (:func:`facemotion.ingest.copy_windows.median_of_differences`)."""
     from facemotion.ingest.loading import check_marker_lists
@@ -324,7 +326,8 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
             else contextlib.nullcontext()
         with threads:
             return _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits,
-                         units=units, subject_prefix=subject_prefix, neutral=neutral,
+                         units=units, subject_prefix=subject_prefix, rate=rate,
+                         neutral=neutral,
                          head_markers=list(head_markers), where=where,
                          max_interp_s=max_interp_s, long_gaps=long_gaps,
                          head_reference=head_reference,
@@ -334,11 +337,11 @@ def stream_dataset(recordings: list[str], fmt: str, out, *, units: str | None = 
 
 
 def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units,
-          subject_prefix, neutral, head_markers, where, max_interp_s, long_gaps,
+          subject_prefix, rate, neutral, head_markers, where, max_interp_s, long_gaps,
           head_reference, copies) -> StreamedDataset:
     """Every take's first pass (or its one pass), then the second."""
     one = _one_pass(chosen[0].take, fmt, used, keep, out, scratch / "take0.f8", roles[0],
-                    budget, limits, units=units, subject_prefix=subject_prefix,
+                    budget, limits, units=units, subject_prefix=subject_prefix, rate=rate,
                     neutral=neutral, head_markers=list(head_markers)
                     ) if len(chosen) == 1 and chosen[0].whole else None
     if one is not None:
@@ -351,7 +354,8 @@ def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units
             one[1].abort()
             raise
     scans = _first_pass(chosen, roles, fmt, used, limits, scratch, budget, units=units,
-                        subject_prefix=subject_prefix, head_markers=list(head_markers))
+                        subject_prefix=subject_prefix, rate=rate,
+                        head_markers=list(head_markers))
     return _second_pass(scans, chosen, roles, keep, used, out, budget, limits,
                         head_markers=list(head_markers), where=where, neutral=neutral,
                         max_interp_s=max_interp_s, long_gaps=long_gaps,
@@ -359,7 +363,7 @@ def _load(chosen, roles, fmt, keep, used, out, scratch, budget, limits, *, units
 
 
 def _first_pass(chosen, roles, fmt, used, limits, scratch, budget, *, units, subject_prefix,
-                head_markers) -> list[TakeScan]:
+                rate, head_markers) -> list[TakeScan]:
     """Every take's first pass, in the dataset's order; a take cut into sentences is read
     once for all of its sentences (:func:`facemotion.ingest.stream_scan.scan_sentences`)."""
     from facemotion.ingest.stream_scan import scan_sentences
@@ -367,7 +371,7 @@ def _first_pass(chosen, roles, fmt, used, limits, scratch, budget, *, units, sub
     takes = list(dict.fromkeys(s.take for s in chosen))
     scans: list[TakeScan | None] = [None] * len(chosen)
     opts = dict(units=units, subject_prefix=subject_prefix, head_markers=head_markers,
-                block_bytes=budget.text_bytes)
+                block_bytes=budget.text_bytes, rate=rate)
     for k, take in enumerate(takes):
         log.info("reading %s (%d/%d, in blocks)", take, k + 1, len(takes))
         mine = [i for i, s in enumerate(chosen) if s.take == take]
@@ -385,7 +389,7 @@ def _first_pass(chosen, roles, fmt, used, limits, scratch, budget, *, units, sub
 
 
 def _one_pass(take, fmt, used, keep, out, scratch, role, budget, limits, *, units,
-              subject_prefix, neutral, head_markers):
+              subject_prefix, rate, neutral, head_markers):
     """(the scan, its :class:`OnePass`) when the one take loads in one pass, or None (head
     markers to align, or something to fix: logged)."""
     if head_markers or keep != used:
@@ -394,7 +398,7 @@ def _one_pass(take, fmt, used, keep, out, scratch, role, budget, limits, *, unit
     one = OnePass(out, keep, role == "train", neutral)
     try:
         scan = scan_take(take, fmt, used, limits, scratch, units=units,
-                         subject_prefix=subject_prefix, role=role,
+                         subject_prefix=subject_prefix, role=role, rate=rate,
                          block_bytes=budget.text_bytes, one_pass=one)
     except BaseException:
         one.abort()

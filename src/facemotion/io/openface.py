@@ -91,6 +91,22 @@ def read_openface_csv(path, units: str | None = None, rate: float | None = None,
                      units_source="file")
 
 
+def read_openface_labels(path) -> list[str]:
+    """The landmark labels (L0, L1, ...) from the header line alone."""
+    from facemotion.io.base import check_readable
+
+    p = check_readable(path)
+    try:
+        with open(p, encoding="utf-8-sig", newline="") as fh:
+            first = next(csv.reader(fh), None)
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise InputError(f"{p}: cannot read as OpenFace CSV text ({type(e).__name__})") from None
+    if not first:
+        raise InputError(f"{p}: OpenFace CSV is empty")
+    _, n = _openface_columns(p, [c.strip() for c in first])
+    return [f"L{k}" for k in range(n)]
+
+
 def _openface_rows(p) -> tuple[list[str], list[list[str]], list[int]]:
     """The header's column names (stripped) and the non-blank data rows with line numbers."""
     try:

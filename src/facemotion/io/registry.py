@@ -57,11 +57,15 @@ class Format:
         if rate is not None and self.rate_from_times:
             return self._function(self.reader)(path, units=units, rate=rate)
         rec = self._function(self.reader)(path, units=units)
-        if rate is not None and abs(rec.rate - rate) > 1e-6 * rate:
-            raise InputError(f"{path}: the file states {rec.rate:g} Hz but the declared rate "
-                             f"is {rate:g} Hz; declare no rate for a {self.name} file, or "
-                             "its own")
+        self.check_stated_rate(path, rec.rate, rate)
         return rec
+
+    def check_stated_rate(self, path, stated: float, declared: float | None) -> None:
+        """A declared rate must equal the rate the file states."""
+        if declared is not None and abs(stated - declared) > 1e-6 * declared:
+            raise InputError(f"{path}: the file states {stated:g} Hz but the declared rate "
+                             f"is {declared:g} Hz; declare no rate for a {self.name} file, or "
+                             "its own")
 
     def labels(self, path) -> list[str]:
         if self.label_reader is None:
@@ -90,8 +94,9 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("optitrack_csv", "OptiTrack Motive CSV export", "optitrack", "read_optitrack_csv",
            units="the file's Length Units; the sheet's for a file without them"),
     Format("openface_csv", "OpenFace 2.x landmark CSV (FeatureExtraction)", "openface",
-           "read_openface_csv", writer="write_openface_csv",
-           units="mm (OpenFace's 3-D landmarks)", rate_from_times=True),
+           "read_openface_csv", label_reader="read_openface_labels",
+           writer="write_openface_csv", units="mm (OpenFace's 3-D landmarks)",
+           rate_from_times=True),
 )}
 #: The format names, in the registry's order.
 FORMAT_NAMES: tuple[str, ...] = tuple(FORMATS)
