@@ -140,6 +140,12 @@ def test_rank_prints_the_workflows_first_pivots_on_animface(tmp_path):
         assert table["marker"].tolist() == workflow["marker"].tolist()
         np.testing.assert_allclose(table["r"].astype(float), workflow["r"], rtol=1e-5)
         assert not set(HEAD) & set(table["marker"])
+        # streamed (--max-gib): the takes read in blocks, the same answer, the same lines
+        streamed = run("rank", *files, "--head", head, "--exclude", head, "--max-gib", "0.1")
+        assert streamed.returncode == 0, streamed.stderr
+        assert streamed.stdout == res.stdout
+    res = run("rank", *takes, "--head", head, "--max-gib", "0")
+    assert res.returncode == 2 and "--max-gib" in res.stderr and res.stderr.count("\n") == 1
 
 
 def test_rank_says_what_the_loading_filled_and_names_a_repeated_head_marker(tmp_path):

@@ -255,14 +255,21 @@ def info(file: str, fmt: str | None, units: str | None, subject_prefix: str | No
 @click.option("--neutral", type=click.Choice(["first_frame", "mean_first_10"]), default=None,
               help="Neutral pose each take's displacements are measured from. Default: the "
                    "study's (first_frame).")
+@click.option("--max-gib", type=click.FloatRange(min=0, min_open=True), default=None,
+              metavar="GIB",
+              help="Stream the takes instead of holding them whole: each read in blocks, "
+                   "checked, aligned, filled and added into A^T A within this memory bound "
+                   "(GiB), for recordings longer than memory; A is written to a temporary "
+                   "file under $TMPDIR and removed. The pivots are the whole-take path's (the "
+                   "Gram route); --method is not used.")
 @FORMAT
 @UNITS
 @SUBJECT_PREFIX
 @RATE
 @_output_forms
 def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, method,
-         max_interp_s, long_gaps, neutral, fmt, units, subject_prefix, rate, as_json=False,
-         as_tsv=False) -> None:
+         max_interp_s, long_gaps, neutral, max_gib, fmt, units, subject_prefix, rate,
+         as_json=False, as_tsv=False) -> None:
     """Rank the markers of one or more takes by QR with column pivoting (Lucero & Munhall
     2008, Sec. III) and give the epsilon-rank (Sec. III, eq. 1).
 
@@ -279,12 +286,15 @@ def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, me
                                  ("long_gaps", long_gaps), ("neutral", neutral),
                                  ("subject_prefix", subject_prefix), ("rate", rate))
                if v is not None}
-    data = load(list(files), fmt=fmt, head_markers=head, exclude_markers=exclude,
-                include_markers=include, progress=True, **options)
-    _echo_filled(data.gap_report)
-    train = data.train
-    ranking = rank_markers(train, method=method)
-    rows, n = train.A.shape
+    if max_gib is None:
+        data = load(list(files), fmt=fmt, head_markers=head, exclude_markers=exclude,
+                    include_markers=include, progress=True, **options)
+        _echo_filled(data.gap_report)
+        ranking = rank_markers(data.train, method=method)
+        rows, n = data.train.A.shape
+    else:
+        ranking = _rank_streamed(list(files), fmt, head, exclude, include, max_gib, options)
+        rows, n = ranking.rows, ranking.n
     table = epsilon_rank(ranking, list(tolerances) or list(DEFAULT_TOLERANCES_MM),
                          normalisation=r_normalisation)
     if as_json or as_tsv:
@@ -303,6 +313,25 @@ def rank(files, head, exclude, include, tolerances, r_normalisation, n_first, me
     click.echo("")
     # the redundant markers are the pivots after the epsilon-rank, in the order printed above
     click.echo(table.drop(columns=["redundant_markers"], errors="ignore").to_string(index=False))
+
+
+def _rank_streamed(files, fmt, head, exclude, include, max_gib, options):
+    """The takes streamed (:func:`facemotion.ingest.streaming.stream_dataset`, all of them
+    training) and their Gram ranked."""
+    import tempfile
+
+    from facemotion.ingest.streaming import stream_dataset
+    from facemotion.io.registry import infer_format
+    from facemotion.ranking.qr import rank_from_gram
+
+    fmt = fmt or infer_format(files[0])
+    with tempfile.TemporaryDirectory(prefix="facemotion-") as tmp:
+        data = stream_dataset(files, fmt, Path(tmp) / "A.npz", head_markers=head,
+                              exclude_markers=exclude, include_markers=include,
+                              train=list(range(len(files))), heldout=[], max_gib=max_gib,
+                              markers_named_in="the arguments", **options)
+    _echo_filled(data.gap_report)
+    return rank_from_gram(data.gram, data.train_rows, data.labels)
 
 
 def _echo_filled(report) -> None:
