@@ -74,16 +74,21 @@ def _both(d, paths, max_gib=MAX_GIB, **kw):
     return whole, streamed, load_displacements(d / "A.npz")
 
 
-def test_streamed_dataset_equals_the_whole_take_load(takes):
-    d, paths = takes
-    assert BLOCK < 1000  # the takes are filled window by window
-    whole, s, D = _both(d, paths)
+def _same_dataset(whole, s, D) -> None:
+    """The streamed dataset ``s`` (its file read back, ``D``) is the whole-take load's."""
     A = whole.displacements.A
     np.testing.assert_allclose(D.A, A, rtol=0, atol=FILL_RTOL * np.abs(A).max())
     for name in ("row_sentence", "row_frame", "fill_mask", "head_residual", "neutral"):
         np.testing.assert_array_equal(getattr(D, name), getattr(whole.displacements, name))
     pd.testing.assert_frame_equal(s.gap_report, whole.gap_report)
     pd.testing.assert_frame_equal(s.sentences, whole.sentences, check_exact=False, rtol=1e-12)
+
+
+def test_streamed_dataset_equals_the_whole_take_load(takes):
+    d, paths = takes
+    assert BLOCK < 1000  # the takes are filled window by window
+    whole, s, D = _both(d, paths)
+    _same_dataset(whole, s, D)
     assert whole.gap_report["fill_method"].str.contains("pca").any()
     assert whole.gap_report["outlier_frames"].sum() == 2 * (1 + 5)
     # the Gram of the training rows, and the ranking made from it
@@ -141,12 +146,7 @@ def test_sentences_cut_from_takes_stream_as_the_whole_take_path_cuts_them(takes,
     assert said_stream == said_whole
     assert any("[s2]" in m and "'M31'" in m for m in said_whole)  # the jump's other side
     D = load_displacements(d / "S.npz")
-    A = whole.displacements.A
-    np.testing.assert_allclose(D.A, A, rtol=0, atol=FILL_RTOL * np.abs(A).max())
-    for name in ("row_sentence", "row_frame", "fill_mask", "head_residual", "neutral"):
-        np.testing.assert_array_equal(getattr(D, name), getattr(whole.displacements, name))
-    pd.testing.assert_frame_equal(s.gap_report, whole.gap_report)
-    pd.testing.assert_frame_equal(s.sentences, whole.sentences, check_exact=False, rtol=1e-12)
+    _same_dataset(whole, s, D)
     tr = whole.train.A
     np.testing.assert_allclose(s.gram, tr.T @ tr, rtol=0, atol=1e-12 * np.abs(tr.T @ tr).max())
     # in the dataset's order: s1, s2, s4, s5 (train), s3, s6
