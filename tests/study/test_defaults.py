@@ -207,6 +207,7 @@ NOT_THE_SETTING = {
     ("facemotion.ingest.loading", "sentences"): "the intervals of the takes, not how many "
                                                 "sentences the animation shows",
     ("facemotion.ingest.streaming", "sentences"): "the intervals of the takes (as loading's)",
+    ("facemotion.ingest.scatter", "sentences"): "a take's intervals (None: the whole take)",
     ("facemotion.lips", "n_modes"): "the generic PCA and LLSE keep every mode unless told",
     ("facemotion.lips.pca", "n_modes"): "the generic PCA keeps every mode unless told",
     ("facemotion.lips.llse", "n_modes"): "the generic LLSE uses every mode unless told",
