@@ -3,18 +3,28 @@ rows read in blocks, never the whole held-out matrix.
 
 Each held-out frame's residuals depend on that frame alone (E^(k) = B_P - C[:, :k] R[:k, :] row
 by row, C = B_P R^-1), so a block of frames gives its frames' residual distances for every k.
-The measures then come from sums over blocks:
+Within a block the frames go through all k in tiles of ``TILE_FRAMES`` frames: a tile's
+residuals stay in the processor's cache from one k to the next, where the rank-one updates of
+a whole block would stream it from memory at every k. The arithmetic of each value is the
+whole-matrix curve's (the same rank-one updates, the same squared distances D2).
 
-* means, RMS, the per-marker relative error, the pooled relative error, the maximum: running
-  sums, counts and maxima, exact (the sums added in another order than the whole-matrix
-  curve's: they agree to round-off);
-* the median: exact on the blocks' residuals (which agree with the whole matrix's to
-  round-off: BLAS groups its sums by the rows it is given), by selection over three passes
-  over the blocks (residuals recomputed, the same numbers each time): pass 1 gives each k's
-  count, minimum and maximum; pass 2 counts the distances in ``MEDIAN_BINS`` equal bins
-  between them and finds the bin(s) holding the middle order statistic(s); pass 3 keeps only
-  the distances in those bins and selects the middle one(s) among them. Memory: one block's
-  residuals and, per k, the bin counts and one bin's values.
+* means, RMS, the per-marker relative error, the pooled relative error: running sums and
+  counts, exact (the sums added in another order than the whole-matrix curve's: they agree to
+  round-off);
+* the maximum and the median: selected among the squared distances D2, then the square root
+  taken (it is monotone and correctly rounded: the same numbers as selecting among the
+  distances). The maximum is a running maximum. The median is exact, by selection over
+  passes over the blocks (residuals recomputed, the same numbers each time): pass 1 also keeps
+  a sample of each k's D2 (every s-th frame, s doubled whenever the sample outgrows
+  ``SAMPLE_BYTES``); the sample's quantiles around the middle, widened by ``SAMPLE_Z`` standard
+  errors, give an interval of D2 values; pass 2 counts the values below it and keeps those in
+  it. When the middle order statistic(s) fall among the kept values (the usual case: two
+  passes in all), they are selected there. Otherwise (the sample misled, or the interval holds
+  more than ``KEEP_BYTES``) the interval known to hold them is cut into ``MEDIAN_BINS`` equal
+  ranges of the values' bit patterns (monotone in the value for D2 >= 0) and a pass counts
+  each; the range holding the order statistic becomes the interval, until its values fit in
+  ``KEEP_BYTES`` (then a pass keeps them) or it is one value. Memory: one block and its tiles,
+  the sample and the kept values.
 """
 
 from __future__ import annotations
@@ -26,43 +36,91 @@ import pandas as pd
 import scipy.linalg
 
 from facemotion.ranking.result import MarkerRanking
-from facemotion.regions.prediction import CURVE_COLUMNS, _align, _k_stop, _sq_dist, _zero_row
+from facemotion.regions.prediction import CURVE_COLUMNS, _align, _k_stop, _zero_row
 
-#: Bins of the median's second pass.
+#: Frames of a tile: its residuals (markers x 3 x frames) stay in cache across the k.
+TILE_FRAMES = 128
+#: Bound on the bytes of the median's sample (all k together).
+SAMPLE_BYTES = 64 * 2**20
+#: Standard errors of the sample quantile by which the median's first interval is widened.
+SAMPLE_Z = 5.0
+#: Bound on the bytes of D2 values kept for the median's selection (all k together).
+KEEP_BYTES = 128 * 2**20
+#: Ranges a fallback pass cuts the median's interval into.
 MEDIAN_BINS = 4096
+_TOP = int(np.array(np.inf).view(np.int64))  # bit pattern of +inf: above every finite D2
 
 
-def _block_distances(rk: MarkerRanking, B: np.ndarray, labels, rank: int):
-    """For one block of held-out rows: (mag (n,), then for k = 1..rank the (n - k, frames)
-    3-D residual distances of the secondary markers) - the whole-matrix curve's arithmetic."""
-    Bp = _align(rk, B, labels)
-    F = Bp.shape[0] // 3
-    n = rk.n
-    R = rk.R
-    C = scipy.linalg.solve_triangular(R[:rank, :rank], Bp[:, :rank].T, trans="T").T
-    E = np.ascontiguousarray(Bp.reshape(F, 3, n).transpose(2, 1, 0))
-    Cm = np.ascontiguousarray(C.reshape(F, 3, rank).transpose(2, 1, 0))
-    yield np.sqrt(_sq_dist(E)).sum(axis=1)
-    step = np.empty_like(E)
-    for k in range(1, rank + 1):
-        Es = E[k:]
-        np.subtract(Es, np.multiply(R[k - 1, k:, None, None], Cm[k - 1], out=step[k:]),
-                    out=Es)
-        yield _sq_dist(Es)
-
-
-def _passes(rk, blocks, labels, rank, visit) -> None:
-    """One pass over the blocks: visit(k, squared distances (n - k, f)) and visit(0, mag)."""
+def _passes(rk: MarkerRanking, blocks, labels, rank: int, visit, on_mag=None) -> None:
+    """One pass over the blocks: ``visit(k, D2, frame0)`` for k = 1..rank and every tile, D2
+    (n - k, frames) the tile's squared 3-D residual distances of the secondary markers (a
+    buffer: used before the next call), frame0 the tile's first frame; ``on_mag(mag)`` with
+    each tile's summed 3-D displacement magnitude per marker (n,)."""
+    n, R, frame0 = rk.n, rk.R, 0
+    E_buf = np.empty(n * 3 * TILE_FRAMES)
+    C_buf = np.empty(rank * 3 * TILE_FRAMES)
+    step_buf = np.empty_like(E_buf)
+    D2_buf = np.empty(n * TILE_FRAMES)
     for B in blocks():
-        it = _block_distances(rk, B, labels, rank)
-        visit(0, next(it))
-        for k, D2 in enumerate(it, start=1):
-            visit(k, D2)
+        Bp = _align(rk, B, labels)
+        F = Bp.shape[0] // 3
+        C = scipy.linalg.solve_triangular(R[:rank, :rank], Bp[:, :rank].T, trans="T").T
+        for t in range(0, F, TILE_FRAMES):
+            m = min(TILE_FRAMES, F - t)
+            # the tile marker-major: E[j] = marker j's (3, frames)
+            E = E_buf[:n * 3 * m].reshape(n, 3, m)
+            E[...] = Bp[3 * t:3 * (t + m)].reshape(m, 3, n).transpose(2, 1, 0)
+            Cm = C_buf[:rank * 3 * m].reshape(rank, 3, m)
+            Cm[...] = C[3 * t:3 * (t + m)].reshape(m, 3, rank).transpose(2, 1, 0)
+            step = step_buf[:n * 3 * m].reshape(n, 3, m)
+            D2 = D2_buf[:n * m].reshape(n, m)
+            if on_mag is not None:
+                on_mag(np.sqrt(np.einsum("jcf,jcf->jf", E, E, out=D2)).sum(axis=1))
+            for k in range(1, rank + 1):
+                # E^(k) = E^(k-1) - C[:, k-1] R[k-1, :]   (secondary markers only)
+                Es = E[k:]
+                np.subtract(Es, np.multiply(R[k - 1, k:, None, None], Cm[k - 1],
+                                            out=step[k:]), out=Es)
+                visit(k, np.einsum("jcf,jcf->jf", Es, Es, out=D2[k:]), frame0 + t)
+        frame0 += F
 
 
-def _middle_ranks(count: int) -> list[int]:
-    h = count // 2
-    return [h] if count % 2 else [h - 1, h]
+class _Sums:
+    """Pass 1: each k's running sums, count and maximum, and the median's sample."""
+
+    def __init__(self, n: int, rank: int):
+        self.sq = np.zeros(rank + 1)
+        self.cnt = np.zeros(rank + 1, dtype=np.int64)
+        self.top = np.zeros(rank + 1)                      # max D2
+        self.per_marker = [np.zeros(n - k) for k in range(rank + 1)]
+        self.mag = np.zeros(n)
+        self.sample: list[list[np.ndarray]] = [[] for _ in range(rank + 1)]
+        self.sampled = np.zeros(rank + 1, dtype=np.int64)
+        self.rate = np.ones(rank + 1)      # values per sampled value
+        self.carry = np.zeros(rank + 1)
+        self.sample_cap = max(1024, SAMPLE_BYTES // 8 // max(rank, 1))
+        self.rng = np.random.default_rng(0)
+        self.buf = np.empty(n * TILE_FRAMES)
+
+    def add_mag(self, mag: np.ndarray) -> None:
+        self.mag += mag
+
+    def visit(self, k: int, D2: np.ndarray, _frame0: int) -> None:
+        self.sq[k] += D2.sum()
+        self.cnt[k] += D2.size
+        self.top[k] = max(self.top[k], D2.max())
+        self.per_marker[k] += np.sqrt(D2, out=self.buf[:D2.size].reshape(D2.shape)).sum(axis=1)
+        # the sample: one value in ``rate``, drawn uniformly within the tile
+        want = self.carry[k] + D2.size / self.rate[k]
+        take = int(want)
+        self.carry[k] = want - take
+        if take:
+            self.sample[k].append(D2.ravel()[self.rng.integers(0, D2.size, take)])
+            self.sampled[k] += take
+        if self.sampled[k] > self.sample_cap:   # thinned: every second value, half the rate
+            self.sample[k] = [np.concatenate(self.sample[k])[::2].copy()]
+            self.sampled[k] = self.sample[k][0].size
+            self.rate[k] *= 2
 
 
 def streamed_error_curve(train_ranking: MarkerRanking,
@@ -72,35 +130,20 @@ def streamed_error_curve(train_ranking: MarkerRanking,
     ``blocks()`` yields (each call a fresh pass; blocks of whole frames, columns ``labels``)."""
     rk = train_ranking
     n, rank = rk.n, _k_stop(rk, k_max)
-    sq = np.zeros(rank + 1)
-    cnt = np.zeros(rank + 1, dtype=np.int64)
-    lo, hi = np.full(rank + 1, np.inf), np.full(rank + 1, -np.inf)
-    per_marker = [np.zeros(n - k) for k in range(rank + 1)]
-    mag = np.zeros(n)
-
-    def first(k, D2):
-        if k == 0:
-            mag[:] += D2
-            return
-        dist = np.sqrt(D2)
-        sq[k] += D2.sum()
-        cnt[k] += dist.size
-        per_marker[k] += dist.sum(axis=1)
-        lo[k], hi[k] = min(lo[k], dist.min()), max(hi[k], dist.max())
-
-    _passes(rk, blocks, labels, rank, first)
-    medians = _medians(rk, blocks, labels, rank, cnt, lo, hi)
+    s = _Sums(n, rank)
+    _passes(rk, blocks, labels, rank, s.visit, s.add_mag)
+    medians = _medians(rk, blocks, labels, rank, s)
     lab = rk.labels_in_order
     out = []
     for k in range(1, rank + 1):
-        total = float(per_marker[k].sum())
-        m = mag[k:]
+        total = float(s.per_marker[k].sum())
+        m = s.mag[k:]
         with np.errstate(divide="ignore", invalid="ignore"):
-            rel = float((per_marker[k] / m).mean())
+            rel = float((s.per_marker[k] / m).mean())
         out.append({
-            "k": k, "mean_abs_error_mm": total / cnt[k],
-            "rms_error_mm": float(np.sqrt(sq[k] / cnt[k] / 3.0)),
-            "median_abs_error_mm": medians[k], "max_abs_error_mm": float(hi[k]),
+            "k": k, "mean_abs_error_mm": total / s.cnt[k],
+            "rms_error_mm": float(np.sqrt(s.sq[k] / s.cnt[k] / 3.0)),
+            "median_abs_error_mm": medians[k], "max_abs_error_mm": float(np.sqrt(s.top[k])),
             "rel_error_per_marker": rel,
             "rel_error_pooled": total / float(m.sum()) if m.sum() > 0 else float("nan"),
             "pivot_marker": lab[k - 1], "main_markers": ",".join(lab[:k]),
@@ -109,40 +152,117 @@ def streamed_error_curve(train_ranking: MarkerRanking,
     return pd.DataFrame(out, columns=CURVE_COLUMNS)
 
 
-def _medians(rk, blocks, labels, rank, cnt, lo, hi) -> dict[int, float]:
-    """Each k's exact median distance by the two selection passes (module notes)."""
-    counts = np.zeros((rank + 1, MEDIAN_BINS), dtype=np.int64)
-    width = np.where(hi > lo, (hi - lo) / MEDIAN_BINS, 1.0)
+class _Probe:
+    """Order statistics (0-based ``ranks`` among a k's values) sought in the D2 values whose
+    bit patterns lie in [lo, hi]; ``below``: the values under lo (None: to count), ``inside``:
+    the values in [lo, hi] (None: to count). A pass either keeps the values inside (when they
+    fit in ``cap``) or counts them in MEDIAN_BINS equal ranges of bit patterns."""
 
-    def bins(k, dist):
-        return np.minimum(((dist - lo[k]) / width[k]).astype(np.int64), MEDIAN_BINS - 1)
+    def __init__(self, ranks, lo, hi, cap, below=None, inside=None):
+        self.ranks, self.lo, self.hi, self.cap = list(ranks), lo, hi, cap
+        self.below, self.inside = below, inside
+        self.keep = inside is None or inside <= cap
+        self.n_below, self.n_inside, self.kept = 0, 0, []
+        self.width = (hi - lo) // MEDIAN_BINS + 1
+        self.bins = None if self.keep else np.zeros(MEDIAN_BINS, dtype=np.int64)
 
-    def second(k, D2):
-        if k:
-            counts[k] += np.bincount(bins(k, np.sqrt(D2)).ravel(), minlength=MEDIAN_BINS)
+    def visit(self, D2: np.ndarray) -> None:
+        bits = D2.view(np.int64)
+        if self.below is None:
+            self.n_below += int(np.count_nonzero(bits < self.lo))
+        inside = (bits >= self.lo) & (bits <= self.hi)
+        if not self.keep:
+            self.bins += np.bincount(((bits[inside] - self.lo) // self.width).ravel(),
+                                     minlength=MEDIAN_BINS)
+            return
+        vals = D2[inside]
+        self.n_inside += vals.size
+        if self.n_inside <= self.cap:
+            self.kept.append(vals)
+        else:
+            self.kept = []
 
-    _passes(rk, blocks, labels, rank, second)
-    want = {}   # k -> [(bin, rank within the bin)]
+    def after(self, total: int) -> tuple[list[float], list[_Probe]]:
+        """After a pass: the D2 values found and the probes still to run."""
+        below = self.n_below if self.below is None else self.below
+        found, nxt = [], {}
+        if not self.keep:
+            cum = np.cumsum(self.bins)
+            for r in self.ranks:
+                b = int(np.searchsorted(cum, r - below, side="right"))
+                lo = self.lo + b * self.width
+                hi = min(self.hi, lo + self.width - 1)
+                if lo == hi:
+                    found.append(_value(lo))
+                    continue
+                before = below + (int(cum[b - 1]) if b else 0)
+                nxt.setdefault(b, (lo, hi, before, int(self.bins[b]), []))[4].append(r)
+            return found, [_Probe(rs, lo, hi, self.cap, bf, ins)
+                           for lo, hi, bf, ins, rs in nxt.values()]
+        inside = self.n_inside
+        vals = np.concatenate(self.kept) if self.kept and inside <= self.cap else None
+        for r in self.ranks:
+            if r < below:
+                key = (0, self.lo - 1, 0, below)
+            elif r >= below + inside:
+                key = (self.hi + 1, _TOP, below + inside, total - below - inside)
+            elif vals is None:   # too many to keep: count them in ranges instead
+                key = (self.lo, self.hi, below, inside)
+            else:
+                i = r - below
+                found.append(float(np.partition(vals, i)[i]))
+                continue
+            nxt.setdefault(key, []).append(r)
+        return found, [_Probe(rs, lo, hi, self.cap, bf, ins)
+                       for (lo, hi, bf, ins), rs in nxt.items()]
+
+
+def _value(bits: int) -> float:
+    """The float64 whose bit pattern is ``bits``."""
+    return float(np.array(bits, dtype=np.int64).view(np.float64))
+
+
+def _first_probes(s: _Sums, rank: int, cap: int) -> dict[int, list[_Probe]]:
+    """Each k's middle order statistic(s), sought first in the interval of D2 that the sample's
+    quantiles give, widened by SAMPLE_Z standard errors (one probe for both middle ranks)."""
+    probes = {}
     for k in range(1, rank + 1):
-        c = np.cumsum(counts[k])
-        want[k] = [(int(b), r - (int(c[b - 1]) if b else 0))
-                   for r in _middle_ranks(int(cnt[k]))
-                   for b in [int(np.searchsorted(c, r, side="right"))]]
-    kept = {k: [] for k in want}
+        cnt = int(s.cnt[k])
+        h = cnt // 2
+        ranks = [h] if cnt % 2 else [h - 1, h]
+        S = np.sort(np.concatenate(s.sample[k]))
+        m = S.size
+        pos_lo, pos_hi = ranks[0] / cnt * m, (ranks[-1] + 1) / cnt * m
+        # kept, expected: cnt * 2 half / m values; at most half the cap (else more passes)
+        half = min(SAMPLE_Z * np.sqrt(m * 0.25) + 2, max(2.0, 0.25 * cap * m / cnt))
+        i0, i1 = int(np.floor(pos_lo - half)), int(np.ceil(pos_hi + half))
+        lo = 0 if i0 <= 0 else int(S[i0:i0 + 1].view(np.int64)[0])
+        hi = _TOP if i1 >= m else int(S[i1:i1 + 1].view(np.int64)[0])
+        probes[k] = [_Probe(ranks, lo, hi, cap)]
+    return probes
 
-    def third(k, D2):
-        if k:
-            dist = np.sqrt(D2).ravel()
-            sel = np.isin(bins(k, dist), [b for b, _ in want[k]])
-            kept[k].append(dist[sel])
 
-    _passes(rk, blocks, labels, rank, third)
+def _medians(rk, blocks, labels, rank, s: _Sums) -> dict[int, float]:
+    """Each k's exact median distance by selection among the D2 values (module notes)."""
+    cap = max(1024, KEEP_BYTES // 8 // max(rank, 1))
+    probes = _first_probes(s, rank, cap)
+    found: dict[int, list[float]] = {k: [] for k in probes}
+    while probes:
+        def visit(k, D2, _frame0, probes=probes):
+            for p in probes.get(k, ()):
+                p.visit(D2)
+
+        _passes(rk, blocks, labels, rank, visit)
+        nxt: dict[int, list[_Probe]] = {}
+        for k, ps in probes.items():
+            for p in ps:
+                vals, more = p.after(int(s.cnt[k]))
+                found[k] += vals
+                if more:
+                    nxt.setdefault(k, []).extend(more)
+        probes = nxt
     out = {}
-    for k, targets in want.items():
-        vals = np.concatenate(kept[k])
-        picks = []
-        for b, r in targets:
-            in_bin = np.sort(vals[bins(k, vals) == b])
-            picks.append(float(in_bin[r]))
-        out[k] = picks[0] if len(picks) == 1 else (picks[0] + picks[1]) / 2.0
+    for k, vals in found.items():
+        d = [float(np.sqrt(v)) for v in sorted(vals)]
+        out[k] = d[0] if len(d) == 1 else (d[0] + d[1]) / 2.0
     return out
