@@ -7,6 +7,7 @@ import pytest
 
 from facemotion.ranking.routes import rank_markers
 from facemotion.regions.prediction import error_curve
+from facemotion.regions import streamed_curve as sc
 from facemotion.regions.streamed_curve import streamed_error_curve
 
 
@@ -42,3 +43,65 @@ def test_streamed_curve_equals_the_whole_matrix_curve(frames_held, block):
     dist = np.sqrt((E.reshape(-1, 3, len(sec)) ** 2).sum(axis=1))
     np.testing.assert_allclose(streamed["median_abs_error_mm"][2], np.median(dist), rtol=1e-9)
     assert streamed["median_abs_error_mm"][2] != pytest.approx(np.mean(dist), rel=1e-3)
+
+
+def _counted(held, block):
+    """blocks() over ``held`` in blocks of ``block`` frames, and the count of passes made."""
+    passes = []
+
+    def blocks():
+        passes.append(1)
+        return (held[a:a + 3 * block] for a in range(0, held.shape[0], 3 * block))
+    return blocks, passes
+
+
+def test_two_passes_when_the_sample_holds_the_median():
+    train, held, labels = _data(401)
+    rk = rank_markers(train, labels, method="gram")
+    blocks, passes = _counted(held, 50)
+    streamed_error_curve(rk, blocks, labels, k_max=8)
+    assert len(passes) == 2
+
+
+@pytest.mark.parametrize("where", ["below", "above", "everything"])
+def test_the_median_is_exact_when_the_first_interval_misses_or_overflows(monkeypatch, where):
+    """The first interval below or above the middle values, or holding every value with room
+    to keep 16 values per k: the fallback passes (ranges of bit patterns, narrowed until the
+    values fit) still select the whole-matrix median, in more passes."""
+    train, held, labels = _data(400)
+    rk = rank_markers(train, labels, method="gram")
+    whole = error_curve(rk, held, labels, k_max=8)
+
+    def first(s, rank, cap):
+        out = {}
+        for k in range(1, rank + 1):
+            S = np.sort(np.concatenate(s.sample[k]))
+            lo, hi = {"below": (0, S[S.size // 10]), "above": (S[-S.size // 10], S[-1]),
+                      "everything": (0.0, np.inf)}[where]
+            cnt = int(s.cnt[k])
+            ranks = [cnt // 2] if cnt % 2 else [cnt // 2 - 1, cnt // 2]
+            bits = np.array([lo, hi]).view(np.int64)
+            out[k] = [sc._Probe(ranks, int(bits[0]), int(bits[1]), cap)]
+        return out
+
+    monkeypatch.setattr(sc, "_first_probes", first)
+    if where == "everything":
+        monkeypatch.setattr(sc, "KEEP_BYTES", 8 * 16 * 8)
+    blocks, passes = _counted(held, 37)
+    streamed = streamed_error_curve(rk, blocks, labels, k_max=8)
+    assert len(passes) > 2
+    assert list(streamed["median_abs_error_mm"]) == list(whole["median_abs_error_mm"])
+
+
+def test_the_median_among_many_equal_distances(monkeypatch):
+    """Every held-out frame the same: each marker's distance repeats in every frame; with room
+    to keep 16 values per k, the ranges narrow to the one repeated value."""
+    train, held, labels = _data(300)
+    held = np.tile(held[:3], (300, 1))
+    rk = rank_markers(train, labels, method="gram")
+    whole = error_curve(rk, held, labels, k_max=8)
+    monkeypatch.setattr(sc, "KEEP_BYTES", 8 * 16 * 8)
+    blocks, passes = _counted(held, 64)
+    streamed = streamed_error_curve(rk, blocks, labels, k_max=8)
+    assert len(passes) > 2
+    assert list(streamed["median_abs_error_mm"]) == list(whole["median_abs_error_mm"])

@@ -244,7 +244,7 @@ def _first_probes(s: _Sums, rank: int, cap: int) -> dict[int, list[_Probe]]:
 
 def _medians(rk, blocks, labels, rank, s: _Sums) -> dict[int, float]:
     """Each k's exact median distance by selection among the D2 values (module notes)."""
-    cap = max(1024, KEEP_BYTES // 8 // max(rank, 1))
+    cap = max(16, KEEP_BYTES // 8 // max(rank, 1))
     probes = _first_probes(s, rank, cap)
     found: dict[int, list[float]] = {k: [] for k in probes}
     while probes:
