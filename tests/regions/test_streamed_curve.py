@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from facemotion.ranking.routes import rank_markers
-from facemotion.regions.prediction import error_curve
 from facemotion.regions import streamed_curve as sc
+from facemotion.regions.prediction import error_curve
 from facemotion.regions.streamed_curve import streamed_error_curve
 
 

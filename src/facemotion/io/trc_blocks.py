@@ -15,6 +15,8 @@ lines (NumFrames) and whether the last line has a line end.
 from __future__ import annotations
 
 import io
+import queue
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -70,17 +72,7 @@ class TrcBlocks:
         or text beyond them, a non-numeric value, Frame# not increasing, a Time off the grid,
         other than NumFrames data lines, a last line without a line end."""
         c = _Carry()
-        chunks = _line_chunks(self.path, self.offset, block_bytes)
-        while True:
-            try:
-                chunk = next(chunks)
-            except StopIteration:
-                break
-            except _CutShort:
-                raise InputError(f"{self.path}: line {c.line_no}, the last one, has no line "
-                                 "end: the file looks cut short") from None
-            values, numbers, n_lines = self._parse(chunk, c.line_no)
-            c.line_no += n_lines
+        for values, numbers, _ in _ahead(self._parsed(block_bytes)):
             if not len(values):
                 continue
             if c.frames + len(values) > self.n_frames:
@@ -98,6 +90,22 @@ class TrcBlocks:
                              f"there are {c.frames} data lines")
         if c.frames == 0:
             raise InputError(f"{self.path}: TRC file has no frames")
+
+    def _parsed(self, block_bytes: int) -> Iterator[tuple]:
+        """:meth:`_parse` of every chunk of whole lines, in order."""
+        line_no = _Carry().line_no
+        chunks = _line_chunks(self.path, self.offset, block_bytes)
+        while True:
+            try:
+                chunk = next(chunks)
+            except StopIteration:
+                return
+            except _CutShort:
+                raise InputError(f"{self.path}: line {line_no}, the last one, has no line "
+                                 "end: the file looks cut short") from None
+            parsed = self._parse(chunk, line_no)
+            line_no += parsed[2]
+            yield parsed
 
     def _parse(self, chunk: bytes, first_line: int):
         """(values (lines x ncol), their line numbers, lines in the chunk incl. blank)."""
@@ -231,6 +239,49 @@ def _pandas(chunk: bytes, ncol: int) -> np.ndarray | None:
     except (ValueError, TypeError, pd.errors.ParserError):
         return None
     return df.to_numpy(dtype=np.float64)
+
+
+def _ahead(items: Iterator, depth: int = 2) -> Iterator:
+    """``items``, each made in a thread of its own while the caller works on the one before
+    (parsing releases the GIL: reading and parsing the next block overlaps the caller's checks,
+    Gram and writing on a second core); at most ``depth`` items made and not yet done with
+    (the one the caller holds included). An exception of ``items`` is raised here, after the
+    items before it, as it would be without the thread. The thread stops when the caller
+    stops asking."""
+    done, ready, stop = threading.Semaphore(depth), queue.Queue(), threading.Event()
+
+    def make():
+        try:
+            while True:
+                while not done.acquire(timeout=0.05):
+                    if stop.is_set():
+                        return
+                if stop.is_set():
+                    return
+                try:
+                    ready.put((False, next(items)))
+                except StopIteration:
+                    ready.put((True, None))
+                    return
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            ready.put((True, e))
+        finally:
+            items.close()
+
+    worker = threading.Thread(target=make, name="trc-blocks", daemon=True)
+    worker.start()
+    try:
+        while True:
+            end, item = ready.get()
+            if end:
+                if item is not None:
+                    raise item
+                return
+            yield item
+            done.release()
+    finally:
+        stop.set()
+        worker.join()
 
 
 class _CutShort(Exception):
