@@ -36,7 +36,7 @@ import pandas as pd
 import scipy.linalg
 
 from facemotion.ranking.result import MarkerRanking
-from facemotion.regions.prediction import CURVE_COLUMNS, _align, _k_stop, _zero_row
+from facemotion.regions.prediction import CURVE_COLUMNS, _k_stop, _pivot_columns, _zero_row
 
 #: Frames of a tile: its residuals (markers x 3 x frames) stay in cache across the k.
 TILE_FRAMES = 128
@@ -62,14 +62,14 @@ def _passes(rk: MarkerRanking, blocks, labels, rank: int, visit, on_mag=None) ->
     step_buf = np.empty_like(E_buf)
     D2_buf = np.empty(n * TILE_FRAMES)
     for B in blocks():
-        Bp = _align(rk, B, labels)
-        F = Bp.shape[0] // 3
-        C = scipy.linalg.solve_triangular(R[:rank, :rank], Bp[:, :rank].T, trans="T").T
+        B, cols = _pivot_columns(rk, B, labels)
+        F = B.shape[0] // 3
+        C = scipy.linalg.solve_triangular(R[:rank, :rank], B[:, cols[:rank]].T, trans="T").T
         for t in range(0, F, TILE_FRAMES):
             m = min(TILE_FRAMES, F - t)
-            # the tile marker-major: E[j] = marker j's (3, frames)
+            # the tile in pivot order, marker-major: E[j] = marker j's (3, frames)
             E = E_buf[:n * 3 * m].reshape(n, 3, m)
-            E[...] = Bp[3 * t:3 * (t + m)].reshape(m, 3, n).transpose(2, 1, 0)
+            E[...] = B[3 * t:3 * (t + m), cols].reshape(m, 3, n).transpose(2, 1, 0)
             Cm = C_buf[:rank * 3 * m].reshape(rank, 3, m)
             Cm[...] = C[3 * t:3 * (t + m)].reshape(m, 3, rank).transpose(2, 1, 0)
             step = step_buf[:n * 3 * m].reshape(n, 3, m)
