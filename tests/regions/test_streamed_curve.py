@@ -20,13 +20,14 @@ def _data(frames_held: int):
     return A[:6000], A[6000:], labels
 
 
+@pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("frames_held,block", [(401, 37), (400, 400), (250, 1)])
-def test_streamed_curve_equals_the_whole_matrix_curve(frames_held, block):
+def test_streamed_curve_equals_the_whole_matrix_curve(frames_held, block, threads):
     train, held, labels = _data(frames_held)
     rk = rank_markers(train, labels, method="gram")
     whole = error_curve(rk, held, labels, k_max=8)
     blocks = lambda: (held[a:a + 3 * block] for a in range(0, held.shape[0], 3 * block))  # noqa: E731
-    streamed = streamed_error_curve(rk, blocks, labels, k_max=8)
+    streamed = streamed_error_curve(rk, blocks, labels, k_max=8, threads=threads)
     assert list(streamed["main_markers"]) == list(whole["main_markers"])
     # the residuals of a block agree with the whole matrix's to round-off (BLAS blocks its
     # sums by the rows it is given); the selections (median, max) are exact on them
@@ -63,8 +64,10 @@ def test_two_passes_when_the_sample_holds_the_median():
     assert len(passes) == 2
 
 
+@pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("where", ["below", "above", "everything"])
-def test_the_median_is_exact_when_the_first_interval_misses_or_overflows(monkeypatch, where):
+def test_the_median_is_exact_when_the_first_interval_misses_or_overflows(monkeypatch, where,
+                                                                        threads):
     """The first interval below or above the middle values, or holding every value with room
     to keep 16 values per k: the fallback passes (ranges of bit patterns, narrowed until the
     values fit) still select the whole-matrix median, in more passes."""
@@ -72,7 +75,7 @@ def test_the_median_is_exact_when_the_first_interval_misses_or_overflows(monkeyp
     rk = rank_markers(train, labels, method="gram")
     whole = error_curve(rk, held, labels, k_max=8)
 
-    def first(s, rank, cap):
+    def first(s, rank, cap, threads):
         out = {}
         for k in range(1, rank + 1):
             S = np.sort(np.concatenate(s.sample[k]))
@@ -81,14 +84,15 @@ def test_the_median_is_exact_when_the_first_interval_misses_or_overflows(monkeyp
             cnt = int(s.cnt[k])
             ranks = [cnt // 2] if cnt % 2 else [cnt // 2 - 1, cnt // 2]
             bits = np.array([lo, hi]).view(np.int64)
-            out[k] = [sc._Probe(ranks, int(bits[0]), int(bits[1]), cap)]
+            out[k] = [sc._Probe(ranks, int(bits[0]), int(bits[1]), cap, threads)]
         return out
 
     monkeypatch.setattr(sc, "_first_probes", first)
+    monkeypatch.setattr(sc, "TILE_FRAMES", 16)  # three tiles a block: both threads work
     if where == "everything":
         monkeypatch.setattr(sc, "KEEP_BYTES", 8 * 16 * 8)
     blocks, passes = _counted(held, 37)
-    streamed = streamed_error_curve(rk, blocks, labels, k_max=8)
+    streamed = streamed_error_curve(rk, blocks, labels, k_max=8, threads=threads)
     assert len(passes) > 2
     assert list(streamed["median_abs_error_mm"]) == list(whole["median_abs_error_mm"])
 

@@ -29,12 +29,15 @@ whole-matrix curve's (the same rank-one updates, the same squared distances D2).
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pandas as pd
 import scipy.linalg
 
+from facemotion.errors import InputError
 from facemotion.ranking.result import MarkerRanking
 from facemotion.regions.prediction import CURVE_COLUMNS, _k_stop, _pivot_columns, _zero_row
 
@@ -51,44 +54,68 @@ MEDIAN_BINS = 4096
 _TOP = int(np.array(np.inf).view(np.int64))  # bit pattern of +inf: above every finite D2
 
 
-def _passes(rk: MarkerRanking, blocks, labels, rank: int, visit, on_mag=None) -> None:
-    """One pass over the blocks: ``visit(k, D2, frame0)`` for k = 1..rank and every tile, D2
-    (n - k, frames) the tile's squared 3-D residual distances of the secondary markers (a
-    buffer: used before the next call), frame0 the tile's first frame; ``on_mag(mag)`` with
-    each tile's summed 3-D displacement magnitude per marker (n,)."""
-    n, R, frame0 = rk.n, rk.R, 0
-    E_buf = np.empty(n * 3 * TILE_FRAMES)
-    C_buf = np.empty(rank * 3 * TILE_FRAMES)
-    step_buf = np.empty_like(E_buf)
-    D2_buf = np.empty(n * TILE_FRAMES)
-    for B in blocks():
-        B, cols = _pivot_columns(rk, B, labels)
-        F = B.shape[0] // 3
-        C = scipy.linalg.solve_triangular(R[:rank, :rank], B[:, cols[:rank]].T, trans="T").T
-        for t in range(0, F, TILE_FRAMES):
+class _Tiles:
+    """One thread's buffers for its tiles: the residuals E, C, the update's product and D2."""
+
+    def __init__(self, n: int, rank: int):
+        self.E = np.empty(n * 3 * TILE_FRAMES)
+        self.C = np.empty(rank * 3 * TILE_FRAMES)
+        self.step = np.empty_like(self.E)
+        self.D2 = np.empty(n * TILE_FRAMES)
+
+    def run(self, rk, B, cols, C, starts, visitor, mag: bool) -> None:
+        """The tiles of B (pivot order ``cols``, C = B_P[:, :rank] R11^-1) that start at the
+        frames ``starts``: ``visitor.visit(k, D2)`` for k = 1..rank, D2 (n - k, frames) the
+        tile's squared 3-D residual distances of the secondary markers (a buffer: used before
+        the next call); with ``mag``, ``visitor.add_mag`` of the tile's summed 3-D
+        displacement magnitude per marker (n,)."""
+        n, R, rank, F = rk.n, rk.R, C.shape[1], B.shape[0] // 3
+        for t in starts:
             m = min(TILE_FRAMES, F - t)
             # the tile in pivot order, marker-major: E[j] = marker j's (3, frames)
-            E = E_buf[:n * 3 * m].reshape(n, 3, m)
+            E = self.E[:n * 3 * m].reshape(n, 3, m)
             E[...] = B[3 * t:3 * (t + m), cols].reshape(m, 3, n).transpose(2, 1, 0)
-            Cm = C_buf[:rank * 3 * m].reshape(rank, 3, m)
+            Cm = self.C[:rank * 3 * m].reshape(rank, 3, m)
             Cm[...] = C[3 * t:3 * (t + m)].reshape(m, 3, rank).transpose(2, 1, 0)
-            step = step_buf[:n * 3 * m].reshape(n, 3, m)
-            D2 = D2_buf[:n * m].reshape(n, m)
-            if on_mag is not None:
-                on_mag(np.sqrt(np.einsum("jcf,jcf->jf", E, E, out=D2)).sum(axis=1))
+            step = self.step[:n * 3 * m].reshape(n, 3, m)
+            D2 = self.D2[:n * m].reshape(n, m)
+            if mag:
+                visitor.add_mag(np.sqrt(np.einsum("jcf,jcf->jf", E, E, out=D2)).sum(axis=1))
             for k in range(1, rank + 1):
                 # E^(k) = E^(k-1) - C[:, k-1] R[k-1, :]   (secondary markers only)
                 Es = E[k:]
                 np.subtract(Es, np.multiply(R[k - 1, k:, None, None], Cm[k - 1],
                                             out=step[k:]), out=Es)
-                visit(k, np.einsum("jcf,jcf->jf", Es, Es, out=D2[k:]), frame0 + t)
-        frame0 += F
+                visitor.visit(k, np.einsum("jcf,jcf->jf", Es, Es, out=D2[k:]))
+
+
+def _passes(rk: MarkerRanking, blocks, labels, rank: int, visitors: list,
+            mag: bool = False) -> None:
+    """One pass over the blocks, each block's tiles shared out among ``len(visitors)``
+    threads (tile i to thread i mod threads; :meth:`_Tiles.run` with visitor i)."""
+    threads = len(visitors)
+    tiles = [_Tiles(rk.n, rank) for _ in range(threads)]
+    R = rk.R
+    with ThreadPoolExecutor(threads) if threads > 1 else contextlib.nullcontext() as pool:
+        for B in blocks():
+            B, cols = _pivot_columns(rk, B, labels)
+            C = scipy.linalg.solve_triangular(R[:rank, :rank], B[:, cols[:rank]].T,
+                                              trans="T").T
+            starts = range(0, B.shape[0] // 3, TILE_FRAMES)
+            if pool is None:
+                tiles[0].run(rk, B, cols, C, starts, visitors[0], mag)
+                continue
+            jobs = [pool.submit(tiles[i].run, rk, B, cols, C, starts[i::threads],
+                                visitors[i], mag) for i in range(threads)]
+            for job in jobs:
+                job.result()
 
 
 class _Sums:
-    """Pass 1: each k's running sums, count and maximum, and the median's sample."""
+    """Pass 1 in one thread: each k's running sums, count and maximum, and a sample of D2 for
+    the median (at most ``sample_cap`` values per k)."""
 
-    def __init__(self, n: int, rank: int):
+    def __init__(self, n: int, rank: int, seed: int = 0, sample_cap: int = 1024):
         self.sq = np.zeros(rank + 1)
         self.cnt = np.zeros(rank + 1, dtype=np.int64)
         self.top = np.zeros(rank + 1)                      # max D2
@@ -98,14 +125,14 @@ class _Sums:
         self.sampled = np.zeros(rank + 1, dtype=np.int64)
         self.rate = np.ones(rank + 1)      # values per sampled value
         self.carry = np.zeros(rank + 1)
-        self.sample_cap = max(1024, SAMPLE_BYTES // 8 // max(rank, 1))
-        self.rng = np.random.default_rng(0)
+        self.sample_cap = sample_cap
+        self.rng = np.random.default_rng([0, seed])
         self.buf = np.empty(n * TILE_FRAMES)
 
     def add_mag(self, mag: np.ndarray) -> None:
         self.mag += mag
 
-    def visit(self, k: int, D2: np.ndarray, _frame0: int) -> None:
+    def visit(self, k: int, D2: np.ndarray) -> None:
         self.sq[k] += D2.sum()
         self.cnt[k] += D2.size
         self.top[k] = max(self.top[k], D2.max())
@@ -122,17 +149,37 @@ class _Sums:
             self.sampled[k] = self.sample[k][0].size
             self.rate[k] *= 2
 
+    @classmethod
+    def merged(cls, parts: list[_Sums]) -> _Sums:
+        """The threads' sums added, in thread order; their samples joined."""
+        s = parts[0]
+        for p in parts[1:]:
+            s.sq += p.sq
+            s.cnt += p.cnt
+            s.top = np.maximum(s.top, p.top)
+            s.mag += p.mag
+            for k in range(1, len(s.sample)):
+                s.per_marker[k] += p.per_marker[k]
+                s.sample[k] += p.sample[k]
+        return s
+
 
 def streamed_error_curve(train_ranking: MarkerRanking,
                          blocks: Callable[[], Iterable[np.ndarray]], labels: Sequence[str],
-                         k_max: int | None = None) -> pd.DataFrame:
+                         k_max: int | None = None, threads: int = 1) -> pd.DataFrame:
     """:func:`~facemotion.regions.prediction.error_curve` of the held-out rows that
-    ``blocks()`` yields (each call a fresh pass; blocks of whole frames, columns ``labels``)."""
+    ``blocks()`` yields (each call a fresh pass; blocks of whole frames, columns ``labels``).
+    ``threads``: threads sharing each block's tiles (the sums are then added in another order:
+    the means agree to round-off; the median and the maximum are the same numbers)."""
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise InputError(f"threads: must be a positive integer, got {threads!r}")
     rk = train_ranking
     n, rank = rk.n, _k_stop(rk, k_max)
-    s = _Sums(n, rank)
-    _passes(rk, blocks, labels, rank, s.visit, s.add_mag)
-    medians = _medians(rk, blocks, labels, rank, s)
+    cap = max(1024, SAMPLE_BYTES // 8 // max(rank, 1) // threads)
+    parts = [_Sums(n, rank, i, cap) for i in range(threads)]
+    _passes(rk, blocks, labels, rank, parts, mag=True)
+    s = _Sums.merged(parts)
+    medians = _medians(rk, blocks, labels, rank, s, threads)
     lab = rk.labels_in_order
     out = []
     for k in range(1, rank + 1):
@@ -156,38 +203,45 @@ class _Probe:
     """Order statistics (0-based ``ranks`` among a k's values) sought in the D2 values whose
     bit patterns lie in [lo, hi]; ``below``: the values under lo (None: to count), ``inside``:
     the values in [lo, hi] (None: to count). A pass either keeps the values inside (when they
-    fit in ``cap``) or counts them in MEDIAN_BINS equal ranges of bit patterns."""
+    fit in ``cap``, in each of the ``threads``) or counts them in MEDIAN_BINS equal ranges of
+    bit patterns. Each thread adds into its own counts and lists (index ``i``)."""
 
-    def __init__(self, ranks, lo, hi, cap, below=None, inside=None):
+    def __init__(self, ranks, lo, hi, cap, threads, below=None, inside=None):
         self.ranks, self.lo, self.hi, self.cap = list(ranks), lo, hi, cap
-        self.below, self.inside = below, inside
+        self.threads, self.below, self.inside = threads, below, inside
         self.keep = inside is None or inside <= cap
-        self.n_below, self.n_inside, self.kept = 0, 0, []
+        self.n_below, self.n_inside = [0] * threads, [0] * threads
+        self.kept: list[list[np.ndarray]] = [[] for _ in range(threads)]
         self.width = (hi - lo) // MEDIAN_BINS + 1
-        self.bins = None if self.keep else np.zeros(MEDIAN_BINS, dtype=np.int64)
+        self.bins = None if self.keep else np.zeros((threads, MEDIAN_BINS), dtype=np.int64)
 
-    def visit(self, D2: np.ndarray) -> None:
+    def visit(self, D2: np.ndarray, i: int) -> None:
         bits = D2.view(np.int64)
         if self.below is None:
-            self.n_below += int(np.count_nonzero(bits < self.lo))
+            self.n_below[i] += int(np.count_nonzero(bits < self.lo))
         inside = (bits >= self.lo) & (bits <= self.hi)
         if not self.keep:
-            self.bins += np.bincount(((bits[inside] - self.lo) // self.width).ravel(),
-                                     minlength=MEDIAN_BINS)
+            self.bins[i] += np.bincount(((bits[inside] - self.lo) // self.width).ravel(),
+                                        minlength=MEDIAN_BINS)
             return
         vals = D2[inside]
-        self.n_inside += vals.size
-        if self.n_inside <= self.cap:
-            self.kept.append(vals)
+        self.n_inside[i] += vals.size
+        if self.n_inside[i] <= self.cap:
+            self.kept[i].append(vals)
         else:
-            self.kept = []
+            self.kept[i] = []
+
+    def _next(self, groups) -> list[_Probe]:
+        return [_Probe(rs, lo, hi, self.cap, self.threads, bf, ins)
+                for (lo, hi, bf, ins), rs in groups.items()]
 
     def after(self, total: int) -> tuple[list[float], list[_Probe]]:
         """After a pass: the D2 values found and the probes still to run."""
-        below = self.n_below if self.below is None else self.below
+        below = sum(self.n_below) if self.below is None else self.below
         found, nxt = [], {}
         if not self.keep:
-            cum = np.cumsum(self.bins)
+            bins = self.bins.sum(axis=0)
+            cum = np.cumsum(bins)
             for r in self.ranks:
                 b = int(np.searchsorted(cum, r - below, side="right"))
                 lo = self.lo + b * self.width
@@ -196,11 +250,11 @@ class _Probe:
                     found.append(_value(lo))
                     continue
                 before = below + (int(cum[b - 1]) if b else 0)
-                nxt.setdefault(b, (lo, hi, before, int(self.bins[b]), []))[4].append(r)
-            return found, [_Probe(rs, lo, hi, self.cap, bf, ins)
-                           for lo, hi, bf, ins, rs in nxt.values()]
-        inside = self.n_inside
-        vals = np.concatenate(self.kept) if self.kept and inside <= self.cap else None
+                nxt.setdefault((lo, hi, before, int(bins[b])), []).append(r)
+            return found, self._next(nxt)
+        inside = sum(self.n_inside)
+        vals = np.concatenate([v for part in self.kept for v in part]) \
+            if inside <= self.cap else None
         for r in self.ranks:
             if r < below:
                 key = (0, self.lo - 1, 0, below)
@@ -213,8 +267,18 @@ class _Probe:
                 found.append(float(np.partition(vals, i)[i]))
                 continue
             nxt.setdefault(key, []).append(r)
-        return found, [_Probe(rs, lo, hi, self.cap, bf, ins)
-                       for (lo, hi, bf, ins), rs in nxt.items()]
+        return found, self._next(nxt)
+
+
+class _Visit:
+    """Thread i's visitor of a median pass: each probe of k sees the tile's D2."""
+
+    def __init__(self, probes: dict[int, list[_Probe]], i: int):
+        self.probes, self.i = probes, i
+
+    def visit(self, k: int, D2: np.ndarray) -> None:
+        for p in self.probes.get(k, ()):
+            p.visit(D2, self.i)
 
 
 def _value(bits: int) -> float:
@@ -222,7 +286,7 @@ def _value(bits: int) -> float:
     return float(np.array(bits, dtype=np.int64).view(np.float64))
 
 
-def _first_probes(s: _Sums, rank: int, cap: int) -> dict[int, list[_Probe]]:
+def _first_probes(s: _Sums, rank: int, cap: int, threads: int) -> dict[int, list[_Probe]]:
     """Each k's middle order statistic(s), sought first in the interval of D2 that the sample's
     quantiles give, widened by SAMPLE_Z standard errors (one probe for both middle ranks)."""
     probes = {}
@@ -238,21 +302,17 @@ def _first_probes(s: _Sums, rank: int, cap: int) -> dict[int, list[_Probe]]:
         i0, i1 = int(np.floor(pos_lo - half)), int(np.ceil(pos_hi + half))
         lo = 0 if i0 <= 0 else int(S[i0:i0 + 1].view(np.int64)[0])
         hi = _TOP if i1 >= m else int(S[i1:i1 + 1].view(np.int64)[0])
-        probes[k] = [_Probe(ranks, lo, hi, cap)]
+        probes[k] = [_Probe(ranks, lo, hi, cap, threads)]
     return probes
 
 
-def _medians(rk, blocks, labels, rank, s: _Sums) -> dict[int, float]:
+def _medians(rk, blocks, labels, rank, s: _Sums, threads: int) -> dict[int, float]:
     """Each k's exact median distance by selection among the D2 values (module notes)."""
     cap = max(16, KEEP_BYTES // 8 // max(rank, 1))
-    probes = _first_probes(s, rank, cap)
+    probes = _first_probes(s, rank, cap, threads)
     found: dict[int, list[float]] = {k: [] for k in probes}
     while probes:
-        def visit(k, D2, _frame0, probes=probes):
-            for p in probes.get(k, ()):
-                p.visit(D2)
-
-        _passes(rk, blocks, labels, rank, visit)
+        _passes(rk, blocks, labels, rank, [_Visit(probes, i) for i in range(threads)])
         nxt: dict[int, list[_Probe]] = {}
         for k, ps in probes.items():
             for p in ps:
