@@ -136,7 +136,8 @@ class _Sums:
         self.sq[k] += D2.sum()
         self.cnt[k] += D2.size
         self.top[k] = max(self.top[k], D2.max())
-        self.per_marker[k] += np.sqrt(D2, out=self.buf[:D2.size].reshape(D2.shape)).sum(axis=1)
+        dist = np.sqrt(D2, out=self.buf[:D2.size].reshape(D2.shape))
+        self.per_marker[k] += np.einsum("jf->j", dist)
         # the sample: one value in ``rate``, drawn uniformly within the tile
         want = self.carry[k] + D2.size / self.rate[k]
         take = int(want)
