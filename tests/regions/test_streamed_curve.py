@@ -56,7 +56,8 @@ def _counted(held, block):
     return blocks, passes
 
 
-def test_two_passes_when_the_sample_holds_the_median():
+def test_one_pass_after_the_pilot_when_its_sample_holds_the_median():
+    """The pilot pass (every 8th frame) and the main pass: two calls of blocks()."""
     train, held, labels = _data(401)
     rk = rank_markers(train, labels, method="gram")
     blocks, passes = _counted(held, 50)
@@ -75,16 +76,14 @@ def test_the_median_is_exact_when_the_first_interval_misses_or_overflows(monkeyp
     rk = rank_markers(train, labels, method="gram")
     whole = error_curve(rk, held, labels, k_max=8)
 
-    def first(s, rank, cap, threads):
+    def first(pilot, rank, cap, threads):
         out = {}
         for k in range(1, rank + 1):
-            S = np.sort(np.concatenate(s.sample[k]))
+            S = np.sort(np.concatenate([v for part in pilot for v in part.values[k]]))
             lo, hi = {"below": (0, S[S.size // 10]), "above": (S[-S.size // 10], S[-1]),
                       "everything": (0.0, np.inf)}[where]
-            cnt = int(s.cnt[k])
-            ranks = [cnt // 2] if cnt % 2 else [cnt // 2 - 1, cnt // 2]
             bits = np.array([lo, hi]).view(np.int64)
-            out[k] = [sc._Probe(ranks, int(bits[0]), int(bits[1]), cap, threads)]
+            out[k] = [sc._Probe(None, int(bits[0]), int(bits[1]), cap, threads)]
         return out
 
     monkeypatch.setattr(sc, "_first_probes", first)

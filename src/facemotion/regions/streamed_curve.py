@@ -36,6 +36,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pandas as pd
 import scipy.linalg
+from threadpoolctl import threadpool_limits
 
 from facemotion.errors import InputError
 from facemotion.ranking.result import MarkerRanking
@@ -43,6 +44,8 @@ from facemotion.regions.prediction import CURVE_COLUMNS, _k_stop, _pivot_columns
 
 #: Frames of a tile: its residuals (markers x 3 x frames) stay in cache across the k.
 TILE_FRAMES = 128
+#: The pilot pass computes the residuals of every PILOT_EVERY-th frame, for the median's sample.
+PILOT_EVERY = 8
 #: Bound on the bytes of the median's sample (all k together).
 SAMPLE_BYTES = 64 * 2**20
 #: Standard errors of the sample quantile by which the median's first interval is widened.
@@ -111,23 +114,45 @@ def _passes(rk: MarkerRanking, blocks, labels, rank: int, visitors: list,
                 job.result()
 
 
-class _Sums:
-    """Pass 1 in one thread: each k's running sums, count and maximum, and a sample of D2 for
-    the median (at most ``sample_cap`` values per k)."""
+class _Sample:
+    """One thread's sample of each k's D2 values (at most ``cap`` values per k): one value in
+    ``rate``, drawn uniformly within each tile; when full, every second value is kept and the
+    rate doubles."""
 
-    def __init__(self, n: int, rank: int, seed: int = 0, sample_cap: int = 1024):
+    def __init__(self, rank: int, seed: int, cap: int):
+        self.values: list[list[np.ndarray]] = [[] for _ in range(rank + 1)]
+        self.count = np.zeros(rank + 1, dtype=np.int64)     # values seen
+        self.sampled = np.zeros(rank + 1, dtype=np.int64)
+        self.rate = np.ones(rank + 1)
+        self.carry = np.zeros(rank + 1)
+        self.cap = cap
+        self.rng = np.random.default_rng([0, seed])
+
+    def visit(self, k: int, D2: np.ndarray) -> None:
+        self.count[k] += D2.size
+        want = self.carry[k] + D2.size / self.rate[k]
+        take = int(want)
+        self.carry[k] = want - take
+        if take:
+            self.values[k].append(D2.ravel()[self.rng.integers(0, D2.size, take)])
+            self.sampled[k] += take
+        if self.sampled[k] > self.cap:
+            self.values[k] = [np.concatenate(self.values[k])[::2].copy()]
+            self.sampled[k] = self.values[k][0].size
+            self.rate[k] *= 2
+
+
+class _Sums:
+    """One thread's running sums, count and maximum of each k (and its probes' visits)."""
+
+    def __init__(self, n: int, rank: int, probes: dict[int, list[_Probe]], i: int):
         self.sq = np.zeros(rank + 1)
         self.cnt = np.zeros(rank + 1, dtype=np.int64)
         self.top = np.zeros(rank + 1)                      # max D2
         self.per_marker = [np.zeros(n - k) for k in range(rank + 1)]
         self.mag = np.zeros(n)
-        self.sample: list[list[np.ndarray]] = [[] for _ in range(rank + 1)]
-        self.sampled = np.zeros(rank + 1, dtype=np.int64)
-        self.rate = np.ones(rank + 1)      # values per sampled value
-        self.carry = np.zeros(rank + 1)
-        self.sample_cap = sample_cap
-        self.rng = np.random.default_rng([0, seed])
         self.buf = np.empty(n * TILE_FRAMES)
+        self.probes, self.i = probes, i
 
     def add_mag(self, mag: np.ndarray) -> None:
         self.mag += mag
@@ -138,30 +163,20 @@ class _Sums:
         self.top[k] = max(self.top[k], D2.max())
         dist = np.sqrt(D2, out=self.buf[:D2.size].reshape(D2.shape))
         self.per_marker[k] += np.einsum("jf->j", dist)
-        # the sample: one value in ``rate``, drawn uniformly within the tile
-        want = self.carry[k] + D2.size / self.rate[k]
-        take = int(want)
-        self.carry[k] = want - take
-        if take:
-            self.sample[k].append(D2.ravel()[self.rng.integers(0, D2.size, take)])
-            self.sampled[k] += take
-        if self.sampled[k] > self.sample_cap:   # thinned: every second value, half the rate
-            self.sample[k] = [np.concatenate(self.sample[k])[::2].copy()]
-            self.sampled[k] = self.sample[k][0].size
-            self.rate[k] *= 2
+        for p in self.probes.get(k, ()):
+            p.visit(D2, self.i)
 
     @classmethod
     def merged(cls, parts: list[_Sums]) -> _Sums:
-        """The threads' sums added, in thread order; their samples joined."""
+        """The threads' sums added, in thread order."""
         s = parts[0]
         for p in parts[1:]:
             s.sq += p.sq
             s.cnt += p.cnt
             s.top = np.maximum(s.top, p.top)
             s.mag += p.mag
-            for k in range(1, len(s.sample)):
+            for k in range(1, len(s.per_marker)):
                 s.per_marker[k] += p.per_marker[k]
-                s.sample[k] += p.sample[k]
         return s
 
 
@@ -176,11 +191,15 @@ def streamed_error_curve(train_ranking: MarkerRanking,
         raise InputError(f"threads: must be a positive integer, got {threads!r}")
     rk = train_ranking
     n, rank = rk.n, _k_stop(rk, k_max)
-    cap = max(1024, SAMPLE_BYTES // 8 // max(rank, 1) // threads)
-    parts = [_Sums(n, rank, i, cap) for i in range(threads)]
-    _passes(rk, blocks, labels, rank, parts, mag=True)
-    s = _Sums.merged(parts)
-    medians = _medians(rk, blocks, labels, rank, s, threads)
+    cap = max(16, KEEP_BYTES // 8 // max(rank, 1))
+    # BLAS on one thread: its work here (C of each block) is small, and its threads would
+    # wait on the tiles' threads
+    with threadpool_limits(1, user_api="blas"):
+        probes = _first_probes(_pilot(rk, blocks, labels, rank, threads), rank, cap, threads)
+        parts = [_Sums(n, rank, probes, i) for i in range(threads)]
+        _passes(rk, blocks, labels, rank, parts, mag=True)
+        s = _Sums.merged(parts)
+        medians = _medians(rk, blocks, labels, rank, s.cnt, probes, threads)
     lab = rk.labels_in_order
     out = []
     for k in range(1, rank + 1):
@@ -200,6 +219,19 @@ def streamed_error_curve(train_ranking: MarkerRanking,
     return pd.DataFrame(out, columns=CURVE_COLUMNS)
 
 
+def _pilot(rk, blocks, labels, rank: int, threads: int) -> list[_Sample]:
+    """The pilot pass: every PILOT_EVERY-th frame of each block, each k's D2 sampled."""
+    def thinned():
+        for B in blocks():
+            B = np.asarray(B)
+            yield B.reshape(-1, 3, B.shape[1])[::PILOT_EVERY].reshape(-1, B.shape[1])
+
+    cap = max(1024, SAMPLE_BYTES // 8 // max(rank, 1) // threads)
+    parts = [_Sample(rank, i, cap) for i in range(threads)]
+    _passes(rk, thinned, labels, rank, parts)
+    return parts
+
+
 class _Probe:
     """Order statistics (0-based ``ranks`` among a k's values) sought in the D2 values whose
     bit patterns lie in [lo, hi]; ``below``: the values under lo (None: to count), ``inside``:
@@ -208,7 +240,7 @@ class _Probe:
     bit patterns. Each thread adds into its own counts and lists (index ``i``)."""
 
     def __init__(self, ranks, lo, hi, cap, threads, below=None, inside=None):
-        self.ranks, self.lo, self.hi, self.cap = list(ranks), lo, hi, cap
+        self.ranks, self.lo, self.hi, self.cap = list(ranks or ()), lo, hi, cap
         self.threads, self.below, self.inside = threads, below, inside
         self.keep = inside is None or inside <= cap
         self.n_below, self.n_inside = [0] * threads, [0] * threads
@@ -287,41 +319,43 @@ def _value(bits: int) -> float:
     return float(np.array(bits, dtype=np.int64).view(np.float64))
 
 
-def _first_probes(s: _Sums, rank: int, cap: int, threads: int) -> dict[int, list[_Probe]]:
-    """Each k's middle order statistic(s), sought first in the interval of D2 that the sample's
-    quantiles give, widened by SAMPLE_Z standard errors (one probe for both middle ranks)."""
+def _first_probes(pilot: list[_Sample], rank: int, cap: int, threads: int
+                  ) -> dict[int, list[_Probe]]:
+    """Each k's first interval of D2 for its middle order statistic(s): the pilot sample's
+    quantiles around the middle, widened by SAMPLE_Z standard errors, and so that the values
+    in it, expected, fill at most a quarter of ``cap`` (else more passes than memory)."""
     probes = {}
     for k in range(1, rank + 1):
-        cnt = int(s.cnt[k])
-        h = cnt // 2
-        ranks = [h] if cnt % 2 else [h - 1, h]
-        S = np.sort(np.concatenate(s.sample[k]))
+        S = np.sort(np.concatenate([v for part in pilot for v in part.values[k]]))
         m = S.size
-        pos_lo, pos_hi = ranks[0] / cnt * m, (ranks[-1] + 1) / cnt * m
-        # kept, expected: cnt * 2 half / m values; at most half the cap (else more passes)
-        half = min(SAMPLE_Z * np.sqrt(m * 0.25) + 2, max(2.0, 0.25 * cap * m / cnt))
-        i0, i1 = int(np.floor(pos_lo - half)), int(np.ceil(pos_hi + half))
+        expected = PILOT_EVERY * sum(int(part.count[k]) for part in pilot)
+        half = min(SAMPLE_Z * np.sqrt(m * 0.25) + 2, max(2.0, 0.25 * cap * m / expected))
+        i0, i1 = int(np.floor(m / 2 - half)), int(np.ceil(m / 2 + half))
         lo = 0 if i0 <= 0 else int(S[i0:i0 + 1].view(np.int64)[0])
         hi = _TOP if i1 >= m else int(S[i1:i1 + 1].view(np.int64)[0])
-        probes[k] = [_Probe(ranks, lo, hi, cap, threads)]
+        probes[k] = [_Probe(None, lo, hi, cap, threads)]
     return probes
 
 
-def _medians(rk, blocks, labels, rank, s: _Sums, threads: int) -> dict[int, float]:
-    """Each k's exact median distance by selection among the D2 values (module notes)."""
-    cap = max(16, KEEP_BYTES // 8 // max(rank, 1))
-    probes = _first_probes(s, rank, cap, threads)
+def _medians(rk, blocks, labels, rank, cnt, probes, threads: int) -> dict[int, float]:
+    """Each k's exact median distance by selection among the D2 values (module notes), from
+    the first probes, run in the main pass; further passes while any probe misses."""
     found: dict[int, list[float]] = {k: [] for k in probes}
-    while probes:
-        _passes(rk, blocks, labels, rank, [_Visit(probes, i) for i in range(threads)])
+    for k, (p,) in probes.items():
+        h = int(cnt[k]) // 2
+        p.ranks = [h] if cnt[k] % 2 else [h - 1, h]
+    while True:
         nxt: dict[int, list[_Probe]] = {}
         for k, ps in probes.items():
             for p in ps:
-                vals, more = p.after(int(s.cnt[k]))
+                vals, more = p.after(int(cnt[k]))
                 found[k] += vals
                 if more:
                     nxt.setdefault(k, []).extend(more)
         probes = nxt
+        if not probes:
+            break
+        _passes(rk, blocks, labels, rank, [_Visit(probes, i) for i in range(threads)])
     out = {}
     for k, vals in found.items():
         d = [float(np.sqrt(v)) for v in sorted(vals)]
