@@ -6,25 +6,28 @@ by row, C = B_P R^-1), so a block of frames gives its frames' residual distances
 Within a block the frames go through all k in tiles of ``TILE_FRAMES`` frames: a tile's
 residuals stay in the processor's cache from one k to the next, where the rank-one updates of
 a whole block would stream it from memory at every k. The arithmetic of each value is the
-whole-matrix curve's (the same rank-one updates, the same squared distances D2).
+whole-matrix curve's (the same rank-one updates, the same squared distances D2). With
+``threads`` > 1 the tiles of each block are shared out among threads (numpy releases the GIL
+in its loops), each adding into sums of its own, added in thread order at the end.
 
 * means, RMS, the per-marker relative error, the pooled relative error: running sums and
   counts, exact (the sums added in another order than the whole-matrix curve's: they agree to
   round-off);
 * the maximum and the median: selected among the squared distances D2, then the square root
   taken (it is monotone and correctly rounded: the same numbers as selecting among the
-  distances). The maximum is a running maximum. The median is exact, by selection over
-  passes over the blocks (residuals recomputed, the same numbers each time): pass 1 also keeps
-  a sample of each k's D2 (every s-th frame, s doubled whenever the sample outgrows
-  ``SAMPLE_BYTES``); the sample's quantiles around the middle, widened by ``SAMPLE_Z`` standard
-  errors, give an interval of D2 values; pass 2 counts the values below it and keeps those in
-  it. When the middle order statistic(s) fall among the kept values (the usual case: two
-  passes in all), they are selected there. Otherwise (the sample misled, or the interval holds
-  more than ``KEEP_BYTES``) the interval known to hold them is cut into ``MEDIAN_BINS`` equal
-  ranges of the values' bit patterns (monotone in the value for D2 >= 0) and a pass counts
-  each; the range holding the order statistic becomes the interval, until its values fit in
-  ``KEEP_BYTES`` (then a pass keeps them) or it is one value. Memory: one block and its tiles,
-  the sample and the kept values.
+  distances). The maximum is a running maximum. The median is exact, by selection: a pilot
+  pass computes the residuals of every ``PILOT_EVERY``-th frame only and keeps a sample of
+  each k's D2 (at most ``SAMPLE_BYTES``); the sample's quantiles around the middle, widened by
+  ``SAMPLE_Z`` standard errors (and narrowed so that the values in it, expected, fill at most
+  a quarter of ``KEEP_BYTES``), give an interval of D2 values; the main pass (all frames, the
+  sums above) counts the values below the interval and keeps those in it. When the middle
+  order statistic(s) fall among the kept values (the usual case: a pilot and one full pass),
+  they are selected there. Otherwise (the sample misled, or the interval holds more than
+  ``KEEP_BYTES``) the interval known to hold them is cut into ``MEDIAN_BINS`` equal ranges of
+  the values' bit patterns (monotone in the value for D2 >= 0) and a further pass counts each;
+  the range holding the order statistic becomes the interval, until its values fit in
+  ``KEEP_BYTES`` (then a pass keeps them) or it is one value. Memory: one block and each
+  thread's tiles, the sample and the kept values (``KEEP_BYTES`` per thread at most).
 """
 
 from __future__ import annotations
