@@ -171,22 +171,25 @@ class TrcBlocks:
 
 def _parse_plain(chunk: bytes, ncol: int) -> np.ndarray | None:
     """The values of a block whose every line is a data line of exactly ``ncol`` fields, or
-    None. Checked without a pass per byte in Python or numpy: the parser is given ``ncol``
-    columns, so a line with more fields stops it; then no line is blank (one row per line end)
-    and the tabs add up to ``ncol - 1`` per line, so no line has fewer. Wide lines (more than
-    ``WIDE_COLUMNS`` fields) go to numpy's C ``loadtxt`` first: pandas builds one column per
-    field, and its overhead per column makes it slower there (docs/performance.md, the
-    streamed parsers' table); narrower lines to pyarrow's C++ reader (one thread; both parse
-    numbers to the correctly rounded float, as the exact reader does). A block either refuses
-    goes to pandas."""
+    None. Checked without a pass per byte in Python or numpy: no line is blank (one row per
+    line end), and no line has another number of fields: pyarrow refuses such a line itself;
+    for the other parsers (given ``ncol`` columns, so that a line with more fields stops them)
+    the tabs must add up to ``ncol - 1`` per line. Lines of up to ``WIDE_COLUMNS`` fields go
+    to pyarrow's C++ reader (one thread), wider ones to numpy's C ``loadtxt``: pandas builds
+    one column per field, and its overhead per column makes it slower there
+    (docs/performance.md, the streamed parsers' table); both parse numbers to the correctly
+    rounded float, as the exact reader does. A block either refuses goes to pandas."""
     if not chunk.isascii() or b"\0" in chunk:
         return None
     lines = chunk.count(b"\n")
-    if chunk.count(b"\t") != lines * (ncol - 1):
-        return None
-    values = _loadtxt(chunk, ncol) if ncol > WIDE_COLUMNS else _arrow(chunk, ncol)
+    narrow = ncol <= WIDE_COLUMNS
+    values = _arrow(chunk, ncol) if narrow else None
     if values is None:
-        values = _pandas(chunk, ncol)
+        if chunk.count(b"\t") != lines * (ncol - 1):
+            return None
+        values = None if narrow else _loadtxt(chunk, ncol)
+        if values is None:
+            values = _pandas(chunk, ncol)
     return values if values is not None and len(values) == lines else None
 
 
