@@ -291,25 +291,32 @@ class _CutShort(Exception):
     """The file's last line has no line end."""
 
 
-def _line_chunks(path: Path, offset: int, block_bytes: int) -> Iterator[bytes]:
-    """The file from ``offset`` in chunks of whole lines; _CutShort after the last whole line
-    when text without a line end follows it (the file was cut short)."""
+def _line_chunks(path: Path, offset: int, block_bytes: int) -> Iterator[bytearray]:
+    """The file from ``offset`` in chunks of whole lines (each read into a buffer of its own,
+    the part line at its end moved to the next: one copy of the text); _CutShort after the
+    last whole line when text without a line end follows it (the file was cut short)."""
     carry = b""
-    with open(path, "rb") as fh:
+    with open(path, "rb", buffering=0) as fh:
         fh.seek(offset)
         while True:
-            data = fh.read(block_bytes)
-            if not data:
+            buf = bytearray(len(carry) + block_bytes)
+            buf[:len(carry)] = carry
+            got = len(carry)
+            while got < len(buf):
+                k = fh.readinto(memoryview(buf)[got:])
+                if not k:
+                    break
+                got += k
+            if got == len(carry):
                 if carry.strip(b" \r\n"):
                     raise _CutShort
                 return
-            buf = carry + data if carry else data
+            del buf[got:]
             cut = buf.rfind(b"\n") + 1
-            if cut == 0:
-                carry = buf
-                continue
-            yield buf if cut == len(buf) else buf[:cut]
-            carry = buf[cut:]
+            carry = bytes(buf[cut:])
+            if cut:
+                del buf[cut:]
+                yield buf
 
 
 def open_trc_blocks(path, units: str | None = None) -> TrcBlocks:
