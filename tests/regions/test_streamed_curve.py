@@ -20,9 +20,13 @@ def _data(frames_held: int):
     return A[:6000], A[6000:], labels
 
 
+@pytest.mark.parametrize("tile", [None, 16])
 @pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("frames_held,block", [(401, 37), (400, 400), (250, 1)])
-def test_streamed_curve_equals_the_whole_matrix_curve(frames_held, block, threads):
+def test_streamed_curve_equals_the_whole_matrix_curve(monkeypatch, frames_held, block,
+                                                      threads, tile):
+    """Tiles of 256 frames (marker-major) and of 16 (one matrix per axis)."""
+    monkeypatch.setattr(sc, "TILE_FRAMES", tile)
     train, held, labels = _data(frames_held)
     rk = rank_markers(train, labels, method="gram")
     whole = error_curve(rk, held, labels, k_max=8)

@@ -45,54 +45,78 @@ from facemotion.errors import InputError
 from facemotion.ranking.result import MarkerRanking
 from facemotion.regions.prediction import CURVE_COLUMNS, _k_stop, _pivot_columns, _zero_row
 
-#: Frames of a tile: its residuals (markers x 3 x frames) stay in cache across the k.
-TILE_FRAMES = 128
+#: Bytes of a tile's residuals (markers x 3 x frames): they stay in cache across the k.
+TILE_BYTES = 2 * 2**20
+#: Frames of a tile (None: as many as fit in TILE_BYTES, 8 to 128).
+TILE_FRAMES: int | None = None
 #: The pilot pass computes the residuals of every PILOT_EVERY-th frame, for the median's sample.
 PILOT_EVERY = 8
 #: Bound on the bytes of the median's sample (all k together).
 SAMPLE_BYTES = 64 * 2**20
 #: Standard errors of the sample quantile by which the median's first interval is widened.
-SAMPLE_Z = 5.0
+SAMPLE_Z = 15.0
 #: Bound on the bytes of D2 values kept for the median's selection (all k together).
-KEEP_BYTES = 128 * 2**20
-#: Ranges a fallback pass cuts the median's interval into.
+KEEP_BYTES = 256 * 2**20
+#: Ranges a pass cuts the median's interval into.
 MEDIAN_BINS = 4096
+#: Passes after the main one before the selection gives up (a range of 2^63 bit patterns is
+#: one value after 6 cuts into 4096).
+MAX_PASSES = 16
 _TOP = int(np.array(np.inf).view(np.int64))  # bit pattern of +inf: above every finite D2
 
 
+def _tile_frames(n: int) -> int:
+    """Frames of a tile of n markers: TILE_FRAMES, or as many as fit in TILE_BYTES."""
+    return TILE_FRAMES or max(8, min(128, TILE_BYTES // (24 * n)))
+
+
 class _Tiles:
-    """One thread's buffers for its tiles: the residuals E, C, the update's product and D2."""
+    """One thread's buffers for its tiles (the residuals E, C, the update's product and D2)
+    and the tiles' arithmetic: marker-major, E[j] = marker j's (3, frames), when a tile has
+    at least 64 frames; else one (frames x markers) matrix per axis, E[c], so that every
+    update and sum still runs along a long row. The same operations on the same numbers."""
 
     def __init__(self, n: int, rank: int):
-        self.E = np.empty(n * 3 * TILE_FRAMES)
-        self.C = np.empty(rank * 3 * TILE_FRAMES)
+        self.m = _tile_frames(n)
+        self.marker_major = self.m >= 64
+        self.E = np.empty(n * 3 * self.m)
+        self.C = np.empty(rank * 3 * self.m)
         self.step = np.empty_like(self.E)
-        self.D2 = np.empty(n * TILE_FRAMES)
+        self.D2 = np.empty(n * self.m)
 
     def run(self, rk, B, cols, C, starts, visitor, mag: bool) -> None:
         """The tiles of B (pivot order ``cols``, C = B_P[:, :rank] R11^-1) that start at the
-        frames ``starts``: ``visitor.visit(k, D2)`` for k = 1..rank, D2 (n - k, frames) the
-        tile's squared 3-D residual distances of the secondary markers (a buffer: used before
-        the next call); with ``mag``, ``visitor.add_mag`` of the tile's summed 3-D
-        displacement magnitude per marker (n,)."""
+        frames ``starts``: ``visitor.visit(k, D2)`` for k = 1..rank, D2 (frames, n - k) the
+        tile's squared 3-D residual distances of the secondary markers (a view of a buffer,
+        perhaps transposed: used before the next call); with ``mag``, ``visitor.add_mag`` of
+        the tile's summed 3-D displacement magnitude per marker (n,)."""
         n, R, rank, F = rk.n, rk.R, C.shape[1], B.shape[0] // 3
+        mm = self.marker_major
         for t in starts:
-            m = min(TILE_FRAMES, F - t)
-            # the tile in pivot order, marker-major: E[j] = marker j's (3, frames)
-            E = self.E[:n * 3 * m].reshape(n, 3, m)
-            E[...] = B[3 * t:3 * (t + m), cols].reshape(m, 3, n).transpose(2, 1, 0)
-            Cm = self.C[:rank * 3 * m].reshape(rank, 3, m)
-            Cm[...] = C[3 * t:3 * (t + m)].reshape(m, 3, rank).transpose(2, 1, 0)
-            step = self.step[:n * 3 * m].reshape(n, 3, m)
-            D2 = self.D2[:n * m].reshape(n, m)
+            m = min(self.m, F - t)
+            rows = slice(3 * t, 3 * (t + m))
+            order = (2, 1, 0) if mm else (1, 0, 2)   # from (frames, 3, columns)
+            E = self.E[:3 * m * n].reshape((n, 3, m) if mm else (3, m, n))
+            E[...] = B[rows, cols].reshape(m, 3, n).transpose(order)
+            Cm = self.C[:3 * m * rank].reshape((rank, 3, m) if mm else (3, m, rank))
+            Cm[...] = C[rows].reshape(m, 3, rank).transpose(order)
+            step = self.step[:3 * m * n].reshape(E.shape)
+            D2 = self.D2[:m * n].reshape((n, m) if mm else (m, n))
+            sq = ("jcf,jcf->jf", "cfj,cfj->fj")[not mm]
             if mag:
-                visitor.add_mag(np.sqrt(np.einsum("jcf,jcf->jf", E, E, out=D2)).sum(axis=1))
+                d = np.sqrt(np.einsum(sq, E, E, out=D2))
+                visitor.add_mag(d.sum(axis=1) if mm else np.einsum("fj->j", d))
             for k in range(1, rank + 1):
                 # E^(k) = E^(k-1) - C[:, k-1] R[k-1, :]   (secondary markers only)
-                Es = E[k:]
-                np.subtract(Es, np.multiply(R[k - 1, k:, None, None], Cm[k - 1],
-                                            out=step[k:]), out=Es)
-                visitor.visit(k, np.einsum("jcf,jcf->jf", Es, Es, out=D2[k:]))
+                if mm:
+                    Es, rc, out = E[k:], np.multiply(R[k - 1, k:, None, None], Cm[k - 1],
+                                                     out=step[k:]), D2[k:]
+                else:
+                    Es, rc, out = E[:, :, k:], np.multiply(Cm[:, :, k - 1, None], R[k - 1, k:],
+                                                           out=step[:, :, k:]), D2[:, k:]
+                np.subtract(Es, rc, out=Es)
+                D2k = np.einsum(sq, Es, Es, out=out)
+                visitor.visit(k, D2k.T if mm else D2k)
 
 
 def _passes(rk: MarkerRanking, blocks, labels, rank: int, visitors: list,
@@ -107,7 +131,7 @@ def _passes(rk: MarkerRanking, blocks, labels, rank: int, visitors: list,
             B, cols = _pivot_columns(rk, B, labels)
             C = scipy.linalg.solve_triangular(R[:rank, :rank], B[:, cols[:rank]].T,
                                               trans="T").T
-            starts = range(0, B.shape[0] // 3, TILE_FRAMES)
+            starts = range(0, B.shape[0] // 3, tiles[0].m)
             if pool is None:
                 tiles[0].run(rk, B, cols, C, starts, visitors[0], mag)
                 continue
@@ -115,6 +139,13 @@ def _passes(rk: MarkerRanking, blocks, labels, rank: int, visitors: list,
                                 visitors[i], mag) for i in range(threads)]
             for job in jobs:
                 job.result()
+
+
+def _like(buf: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """A view of ``buf`` shaped as the 2-D ``a``, in ``a``'s memory order."""
+    if a.strides[0] < a.strides[1]:
+        return buf[:a.size].reshape(a.shape[::-1]).T
+    return buf[:a.size].reshape(a.shape)
 
 
 class _Sample:
@@ -137,7 +168,8 @@ class _Sample:
         take = int(want)
         self.carry[k] = want - take
         if take:
-            self.values[k].append(D2.ravel()[self.rng.integers(0, D2.size, take)])
+            at = self.rng.integers(0, D2.size, take)
+            self.values[k].append(D2[at // D2.shape[1], at % D2.shape[1]])
             self.sampled[k] += take
         if self.sampled[k] > self.cap:
             self.values[k] = [np.concatenate(self.values[k])[::2].copy()]
@@ -154,7 +186,7 @@ class _Sums:
         self.top = np.zeros(rank + 1)                      # max D2
         self.per_marker = [np.zeros(n - k) for k in range(rank + 1)]
         self.mag = np.zeros(n)
-        self.buf = np.empty(n * TILE_FRAMES)
+        self.buf = np.empty(n * _tile_frames(n))
         self.probes, self.i = probes, i
 
     def add_mag(self, mag: np.ndarray) -> None:
@@ -164,8 +196,8 @@ class _Sums:
         self.sq[k] += D2.sum()
         self.cnt[k] += D2.size
         self.top[k] = max(self.top[k], D2.max())
-        dist = np.sqrt(D2, out=self.buf[:D2.size].reshape(D2.shape))
-        self.per_marker[k] += np.einsum("jf->j", dist)
+        dist = np.sqrt(D2, out=_like(self.buf, D2))
+        self.per_marker[k] += np.einsum("fj->j", dist)
         for p in self.probes.get(k, ()):
             p.visit(D2, self.i)
 
@@ -238,72 +270,65 @@ def _pilot(rk, blocks, labels, rank: int, threads: int) -> list[_Sample]:
 class _Probe:
     """Order statistics (0-based ``ranks`` among a k's values) sought in the D2 values whose
     bit patterns lie in [lo, hi]; ``below``: the values under lo (None: to count), ``inside``:
-    the values in [lo, hi] (None: to count). A pass either keeps the values inside (when they
-    fit in ``cap``, in each of the ``threads``) or counts them in MEDIAN_BINS equal ranges of
-    bit patterns. Each thread adds into its own counts and lists (index ``i``)."""
+    the values in [lo, hi] (None: to count). A pass counts the values inside in MEDIAN_BINS
+    equal ranges of bit patterns and, unless they are known to be too many, keeps them, up to
+    ``cap`` values in all (``cap // threads`` a thread). Each thread adds into its own counts
+    and lists (index ``i``)."""
 
     def __init__(self, ranks, lo, hi, cap, threads, below=None, inside=None):
         self.ranks, self.lo, self.hi, self.cap = list(ranks or ()), lo, hi, cap
         self.threads, self.below, self.inside = threads, below, inside
-        self.keep = inside is None or inside <= cap
+        self.room = cap // threads if inside is None or inside <= cap // threads else -1
         self.n_below, self.n_inside = [0] * threads, [0] * threads
         self.kept: list[list[np.ndarray]] = [[] for _ in range(threads)]
         self.width = (hi - lo) // MEDIAN_BINS + 1
-        self.bins = None if self.keep else np.zeros((threads, MEDIAN_BINS), dtype=np.int64)
+        self.bins = np.zeros((threads, MEDIAN_BINS), dtype=np.int64)
 
     def visit(self, D2: np.ndarray, i: int) -> None:
         bits = D2.view(np.int64)
         if self.below is None:
             self.n_below[i] += int(np.count_nonzero(bits < self.lo))
         inside = (bits >= self.lo) & (bits <= self.hi)
-        if not self.keep:
-            self.bins[i] += np.bincount(((bits[inside] - self.lo) // self.width).ravel(),
-                                        minlength=MEDIAN_BINS)
-            return
         vals = D2[inside]
         self.n_inside[i] += vals.size
-        if self.n_inside[i] <= self.cap:
+        self.bins[i] += np.bincount((vals.view(np.int64) - self.lo) // self.width,
+                                    minlength=MEDIAN_BINS)
+        if self.n_inside[i] <= self.room:
             self.kept[i].append(vals)
         else:
             self.kept[i] = []
 
-    def _next(self, groups) -> list[_Probe]:
-        return [_Probe(rs, lo, hi, self.cap, self.threads, bf, ins)
-                for (lo, hi, bf, ins), rs in groups.items()]
-
     def after(self, total: int) -> tuple[list[float], list[_Probe]]:
-        """After a pass: the D2 values found and the probes still to run."""
+        """After a pass: the D2 values found and the probes still to run: below or above the
+        interval, or in the range of bit patterns holding the rank when the values inside
+        were too many to keep."""
         below = sum(self.n_below) if self.below is None else self.below
-        found, nxt = [], {}
-        if not self.keep:
-            bins = self.bins.sum(axis=0)
-            cum = np.cumsum(bins)
-            for r in self.ranks:
-                b = int(np.searchsorted(cum, r - below, side="right"))
-                lo = self.lo + b * self.width
-                hi = min(self.hi, lo + self.width - 1)
-                if lo == hi:
-                    found.append(_value(lo))
-                    continue
-                before = below + (int(cum[b - 1]) if b else 0)
-                nxt.setdefault((lo, hi, before, int(bins[b])), []).append(r)
-            return found, self._next(nxt)
         inside = sum(self.n_inside)
-        vals = np.concatenate([v for part in self.kept for v in part]) \
-            if inside <= self.cap else None
+        kept = all(c <= self.room for c in self.n_inside)
+        vals = np.concatenate([v for part in self.kept for v in part]) if kept else None
+        bins = np.cumsum(self.bins.sum(axis=0))
+        found, nxt = [], {}
         for r in self.ranks:
             if r < below:
                 key = (0, self.lo - 1, 0, below)
             elif r >= below + inside:
                 key = (self.hi + 1, _TOP, below + inside, total - below - inside)
-            elif vals is None:   # too many to keep: count them in ranges instead
-                key = (self.lo, self.hi, below, inside)
-            else:
+            elif vals is not None:
                 i = r - below
                 found.append(float(np.partition(vals, i)[i]))
                 continue
+            else:   # too many to keep: the range that holds the rank
+                b = int(np.searchsorted(bins, r - below, side="right"))
+                lo = self.lo + b * self.width
+                hi = min(self.hi, lo + self.width - 1)
+                if lo == hi:   # one value
+                    found.append(_value(lo))
+                    continue
+                before = int(bins[b - 1]) if b else 0
+                key = (lo, hi, below + before, int(bins[b]) - before)
             nxt.setdefault(key, []).append(r)
-        return found, self._next(nxt)
+        return found, [_Probe(rs, lo, hi, self.cap, self.threads, bf, ins)
+                       for (lo, hi, bf, ins), rs in nxt.items()]
 
 
 class _Visit:
@@ -347,7 +372,7 @@ def _medians(rk, blocks, labels, rank, cnt, probes, threads: int) -> dict[int, f
     for k, (p,) in probes.items():
         h = int(cnt[k]) // 2
         p.ranks = [h] if cnt[k] % 2 else [h - 1, h]
-    while True:
+    for _ in range(MAX_PASSES):
         nxt: dict[int, list[_Probe]] = {}
         for k, ps in probes.items():
             for p in ps:
@@ -358,7 +383,12 @@ def _medians(rk, blocks, labels, rank, cnt, probes, threads: int) -> dict[int, f
         probes = nxt
         if not probes:
             break
+        # every k to ``rank`` again, as in the main pass: C from the same solve, so that each
+        # pass recomputes the very same D2 values
         _passes(rk, blocks, labels, rank, [_Visit(probes, i) for i in range(threads)])
+    else:
+        raise RuntimeError(f"streamed error curve: the medians of k = {sorted(probes)} not "
+                           f"selected in {MAX_PASSES} passes (the blocks differ between passes?)")
     out = {}
     for k, vals in found.items():
         d = [float(np.sqrt(v)) for v in sorted(vals)]
