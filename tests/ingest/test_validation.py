@@ -167,6 +167,25 @@ def test_nanmedian_over_markers_equals_numpys():
         np.testing.assert_array_equal(_nanmedian_markers(x), ref)
 
 
+def test_median_over_markers_of_full_frames_equals_numpys():
+    """One partition and a maximum give numpy's median (two partitions) exactly: odd and even
+    counts, ties, infinities; and a value off by one order statistic is told apart."""
+    from facemotion.ingest.validation import _median_full
+
+    rng = np.random.default_rng(1)
+    for shape in ((50, 7, 3), (40, 8, 3), (30, 468), (20, 1, 3), (20, 2)):
+        x = rng.standard_normal(shape)
+        x[1] = 0.5                                   # every marker equal
+        x[2, : shape[1] // 2] = np.inf               # infinities on the lower half
+        x[3] = np.round(x[3])                        # ties
+        with np.errstate(invalid="ignore"):
+            ref = np.median(x, axis=1, keepdims=True)
+            got = _median_full(x)
+        np.testing.assert_array_equal(got, ref)
+    x = np.arange(8.0)[None]
+    assert _median_full(x)[0, 0] == 3.5 != np.sort(x)[0, 3]
+
+
 def test_vectorised_outlier_screen_equals_the_per_marker_test():
     """find_outliers sends only markers with a gap, a far sample or a fast step to the
     piecewise test: the mask equals the piecewise test run on every marker (reference), and

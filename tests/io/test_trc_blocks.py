@@ -147,3 +147,27 @@ def test_plain_blocks_parse_as_python_floats(tmp_path, monkeypatch, parser, fmt)
     else:  # the 17-digit strings are Python's own: parsing gives the very same floats
         np.testing.assert_array_equal(exact, pts)
         np.testing.assert_array_equal(pts_b if parser == "loadtxt" else exact, pts)
+
+
+def _block_threads():
+    import threading
+
+    return [t for t in threading.enumerate() if t.name == "trc-blocks"]
+
+
+def test_the_next_block_is_parsed_ahead_and_stops_with_the_caller(tmp_path):
+    """Blocks are parsed in a thread one block ahead: the caller that stops after one block
+    leaves no thread behind and the file closed; an error of a later block comes after the
+    blocks before it."""
+    p = _file(tmp_path)
+    it = open_trc_blocks(p).blocks(300)
+    first, _ = next(it)
+    assert first == 0 and len(_block_threads()) == 1
+    it.close()
+    assert _block_threads() == []
+    _edit(p, 250, CASES["short line"][1])
+    got = []
+    with pytest.raises(InputError, match="line 250"):
+        for a, blk in open_trc_blocks(p).blocks(300):
+            got.append(a + len(blk))
+    assert got and got[-1] < 250 - 6 and _block_threads() == []

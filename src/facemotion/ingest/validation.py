@@ -140,16 +140,30 @@ def _nanmedian_markers(x: np.ndarray) -> np.ndarray:
 BLOCK_FRAMES = 2048
 
 
+def _median_full(p: np.ndarray) -> np.ndarray:
+    """np.median(p, axis=1, keepdims=True) of values without NaN, by one partition: for an
+    even count the lower middle value is the largest of those below the upper one (numpy's
+    median partitions at both; the same two values, the same mean)."""
+    if p.shape[1] == 0:
+        return np.median(p, axis=1, keepdims=True)
+    h = p.shape[1] // 2
+    x = np.partition(p, h, axis=1)
+    upper = x[:, h:h + 1]
+    if p.shape[1] % 2:
+        return upper
+    return (x[:, :h].max(axis=1, keepdims=True) + upper) / 2.0
+
+
 def _median_markers(p: np.ndarray) -> np.ndarray:
     """Per-frame median over the markers (axis 1, keepdims) of (frames, markers[, 3]), NaN
     for missing: numpy's partition-based median on the frames measured in full (the common
     case), :func:`_nanmedian_markers` on the others. Same values as np.nanmedian."""
     full = ~np.isnan(p).reshape(len(p), -1).any(axis=1)
     if full.all():
-        return np.median(p, axis=1, keepdims=True)
+        return _median_full(p)
     out = np.empty((len(p), 1) + p.shape[2:])
     if full.any():
-        out[full] = np.median(p[full], axis=1, keepdims=True)
+        out[full] = _median_full(p[full])
     out[~full] = _nanmedian_markers(p[~full])
     return out
 

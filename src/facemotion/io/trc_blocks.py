@@ -15,6 +15,8 @@ lines (NumFrames) and whether the last line has a line end.
 from __future__ import annotations
 
 import io
+import queue
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -70,17 +72,7 @@ class TrcBlocks:
         or text beyond them, a non-numeric value, Frame# not increasing, a Time off the grid,
         other than NumFrames data lines, a last line without a line end."""
         c = _Carry()
-        chunks = _line_chunks(self.path, self.offset, block_bytes)
-        while True:
-            try:
-                chunk = next(chunks)
-            except StopIteration:
-                break
-            except _CutShort:
-                raise InputError(f"{self.path}: line {c.line_no}, the last one, has no line "
-                                 "end: the file looks cut short") from None
-            values, numbers, n_lines = self._parse(chunk, c.line_no)
-            c.line_no += n_lines
+        for values, numbers, _ in _ahead(self._parsed(block_bytes)):
             if not len(values):
                 continue
             if c.frames + len(values) > self.n_frames:
@@ -98,6 +90,22 @@ class TrcBlocks:
                              f"there are {c.frames} data lines")
         if c.frames == 0:
             raise InputError(f"{self.path}: TRC file has no frames")
+
+    def _parsed(self, block_bytes: int) -> Iterator[tuple]:
+        """:meth:`_parse` of every chunk of whole lines, in order."""
+        line_no = _Carry().line_no
+        chunks = _line_chunks(self.path, self.offset, block_bytes)
+        while True:
+            try:
+                chunk = next(chunks)
+            except StopIteration:
+                return
+            except _CutShort:
+                raise InputError(f"{self.path}: line {line_no}, the last one, has no line "
+                                 "end: the file looks cut short") from None
+            parsed = self._parse(chunk, line_no)
+            line_no += parsed[2]
+            yield parsed
 
     def _parse(self, chunk: bytes, first_line: int):
         """(values (lines x ncol), their line numbers, lines in the chunk incl. blank)."""
@@ -163,22 +171,25 @@ class TrcBlocks:
 
 def _parse_plain(chunk: bytes, ncol: int) -> np.ndarray | None:
     """The values of a block whose every line is a data line of exactly ``ncol`` fields, or
-    None. Checked without a pass per byte in Python or numpy: the parser is given ``ncol``
-    columns, so a line with more fields stops it; then no line is blank (one row per line end)
-    and the tabs add up to ``ncol - 1`` per line, so no line has fewer. Wide lines (more than
-    ``WIDE_COLUMNS`` fields) go to numpy's C ``loadtxt`` first: pandas builds one column per
-    field, and its overhead per column makes it slower there (docs/performance.md, the
-    streamed parsers' table); narrower lines to pyarrow's C++ reader (one thread; both parse
-    numbers to the correctly rounded float, as the exact reader does). A block either refuses
-    goes to pandas."""
+    None. Checked without a pass per byte in Python or numpy: no line is blank (one row per
+    line end), and no line has another number of fields: pyarrow refuses such a line itself;
+    for the other parsers (given ``ncol`` columns, so that a line with more fields stops them)
+    the tabs must add up to ``ncol - 1`` per line. Lines of up to ``WIDE_COLUMNS`` fields go
+    to pyarrow's C++ reader (one thread), wider ones to numpy's C ``loadtxt``: pandas builds
+    one column per field, and its overhead per column makes it slower there
+    (docs/performance.md, the streamed parsers' table); both parse numbers to the correctly
+    rounded float, as the exact reader does. A block either refuses goes to pandas."""
     if not chunk.isascii() or b"\0" in chunk:
         return None
     lines = chunk.count(b"\n")
-    if chunk.count(b"\t") != lines * (ncol - 1):
-        return None
-    values = _loadtxt(chunk, ncol) if ncol > WIDE_COLUMNS else _arrow(chunk, ncol)
+    narrow = ncol <= WIDE_COLUMNS
+    values = _arrow(chunk, ncol) if narrow else None
     if values is None:
-        values = _pandas(chunk, ncol)
+        if chunk.count(b"\t") != lines * (ncol - 1):
+            return None
+        values = None if narrow else _loadtxt(chunk, ncol)
+        if values is None:
+            values = _pandas(chunk, ncol)
     return values if values is not None and len(values) == lines else None
 
 
@@ -233,29 +244,79 @@ def _pandas(chunk: bytes, ncol: int) -> np.ndarray | None:
     return df.to_numpy(dtype=np.float64)
 
 
+def _ahead(items: Iterator, depth: int = 2) -> Iterator:
+    """``items``, each made in a thread of its own while the caller works on the one before
+    (parsing releases the GIL: reading and parsing the next block overlaps the caller's checks,
+    Gram and writing on a second core); at most ``depth`` items made and not yet done with
+    (the one the caller holds included). An exception of ``items`` is raised here, after the
+    items before it, as it would be without the thread. The thread stops when the caller
+    stops asking."""
+    done, ready, stop = threading.Semaphore(depth), queue.Queue(), threading.Event()
+
+    def make():
+        try:
+            while True:
+                while not done.acquire(timeout=0.05):
+                    if stop.is_set():
+                        return
+                if stop.is_set():
+                    return
+                try:
+                    ready.put((False, next(items)))
+                except StopIteration:
+                    ready.put((True, None))
+                    return
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            ready.put((True, e))
+        finally:
+            items.close()
+
+    worker = threading.Thread(target=make, name="trc-blocks", daemon=True)
+    worker.start()
+    try:
+        while True:
+            end, item = ready.get()
+            if end:
+                if item is not None:
+                    raise item
+                return
+            yield item
+            done.release()
+    finally:
+        stop.set()
+        worker.join()
+
+
 class _CutShort(Exception):
     """The file's last line has no line end."""
 
 
-def _line_chunks(path: Path, offset: int, block_bytes: int) -> Iterator[bytes]:
-    """The file from ``offset`` in chunks of whole lines; _CutShort after the last whole line
-    when text without a line end follows it (the file was cut short)."""
+def _line_chunks(path: Path, offset: int, block_bytes: int) -> Iterator[bytearray]:
+    """The file from ``offset`` in chunks of whole lines (each read into a buffer of its own,
+    the part line at its end moved to the next: one copy of the text); _CutShort after the
+    last whole line when text without a line end follows it (the file was cut short)."""
     carry = b""
-    with open(path, "rb") as fh:
+    with open(path, "rb", buffering=0) as fh:
         fh.seek(offset)
         while True:
-            data = fh.read(block_bytes)
-            if not data:
+            buf = bytearray(len(carry) + block_bytes)
+            buf[:len(carry)] = carry
+            got = len(carry)
+            while got < len(buf):
+                k = fh.readinto(memoryview(buf)[got:])
+                if not k:
+                    break
+                got += k
+            if got == len(carry):
                 if carry.strip(b" \r\n"):
                     raise _CutShort
                 return
-            buf = carry + data if carry else data
+            del buf[got:]
             cut = buf.rfind(b"\n") + 1
-            if cut == 0:
-                carry = buf
-                continue
-            yield buf if cut == len(buf) else buf[:cut]
-            carry = buf[cut:]
+            carry = bytes(buf[cut:])
+            if cut:
+                del buf[cut:]
+                yield buf
 
 
 def open_trc_blocks(path, units: str | None = None) -> TrcBlocks:

@@ -97,6 +97,13 @@ def residual_norm(ranking: MarkerRanking, k: int) -> float:
 
 def _align(ranking: MarkerRanking, B, labels, name="B") -> np.ndarray:
     """B with its columns in the training's pivot order (matched by label)."""
+    B, cols = _pivot_columns(ranking, B, labels, name)
+    return B[:, cols]
+
+
+def _pivot_columns(ranking: MarkerRanking, B, labels, name="B") -> tuple[np.ndarray, list[int]]:
+    """B as floats and the column of each of the training's markers in pivot order (matched by
+    label), after checking B's shape, labels and values."""
     B = np.asarray(B, dtype=float)
     labels = [str(x) for x in labels]
     if B.ndim != 2 or B.shape[1] != len(labels) or B.shape[0] % 3 or B.shape[0] == 0:
@@ -108,7 +115,7 @@ def _align(ranking: MarkerRanking, B, labels, name="B") -> np.ndarray:
     bad = nonfinite_markers(B, labels)
     if bad:
         raise InputError(f"{name}: NaN or inf displacements in marker(s) {', '.join(bad)}")
-    return B[:, [pos[lab] for lab in ranking.labels_in_order]]
+    return B, [pos[lab] for lab in ranking.labels_in_order]
 
 
 def _stats(D2: np.ndarray, mag: np.ndarray, k: int, main: str) -> dict:
