@@ -42,6 +42,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+# imported here, not where it is used: threadpool_limits (stream_dataset) limits only the BLAS
+# libraries already loaded when it is entered
+from scipy.linalg.blas import dsyrk
 from threadpoolctl import threadpool_limits
 
 from facemotion.errors import InputError
@@ -201,8 +205,6 @@ def _gram_add(G: np.ndarray, rows_t: np.ndarray) -> np.ndarray:
     """G += B^T B in place on G's upper triangle (BLAS dsyrk, no n x n temporary), from
     ``rows_t`` = B^T (markers, rows), C-ordered: B in Fortran order, the layout in which
     dsyrk's B^T B form runs fastest."""
-    from scipy.linalg.blas import dsyrk
-
     return dsyrk(1.0, rows_t.T, beta=1.0, c=G, trans=1, lower=0, overwrite_c=1)
 
 
