@@ -178,7 +178,12 @@ def worker(kind: str, path: str, fmt: str, max_gib: str, k_max: str = "0",
         out = Path(path).with_suffix(".A.npz")
         ds = stream_dataset([path], fmt, out, train=[0], heldout=[], max_gib=float(max_gib))
         t_load = time.perf_counter() - t0
-        rk = rank_from_gram(ds.gram, ds.train_rows, ds.labels)
+        # from here on what the workflow's evaluate_stream job holds: the Gram and the ranking,
+        # not the load's frame-by-marker masks (a job of its own there)
+        gram, rows, labels = ds.gram, ds.train_rows, ds.labels
+        del ds
+        rk = rank_from_gram(gram, rows, labels)
+        del gram
         t_rank = time.perf_counter() - t0 - t_load
         res = {"load_s": t_load, "rank_s": t_rank, "r1": float(rk.r[0])}
         if int(k_max):
