@@ -3,7 +3,7 @@
 import json
 
 from facemotion.ingest.displacement_file import load_displacements
-from facemotion.plots.marker_set import plot_marker_set
+from facemotion.plots.marker_set import plot_design
 from facemotion.regions.consensus import (
     LabelMap,
     SubjectPilot,
@@ -46,10 +46,8 @@ def main(sm, log, prov):
     write_table(con.subjects, sm.output.subjects, "design_consensus_subjects", prov)
     text = json.dumps(ms.to_dict(), indent=1, allow_nan=False) + "\n"
     write_artifact(sm.output.marker_set, text.encode(), "marker_set", prov)
-    err = ms.per_marker.set_index("marker").loc[ms.labels, "expected_error_mm"].to_numpy()
-    fig = plot_marker_set(ms.neutral, ms.labels, ms.selected, err,
-                          title=f"{len(pilots)} subjects: {ms.k} markers to place; the "
-                                f"{len(ms.predicted)} others predicted")
+    fig = plot_design(ms, title=f"{len(pilots)} subjects: {ms.k} markers to place; the "
+                                 f"{len(ms.predicted)} others predicted")
     save_figure(fig, figure_files(sm.output, "png"), "marker_set", prov)
 
 

@@ -3,7 +3,7 @@
 import json
 
 from facemotion.ingest.displacement_file import load_displacements
-from facemotion.plots.marker_set import plot_marker_set
+from facemotion.plots.marker_set import plot_design
 from facemotion.regions.design import design_markers
 from facemotion.regions.marker_set import protocol_text
 from facemotion.study.adapter import run_step
@@ -26,10 +26,8 @@ def main(sm, log, prov):
     text = json.dumps(ms.to_dict(), indent=1, allow_nan=False) + "\n"
     write_artifact(sm.output.marker_set, text.encode(), "marker_set", prov)
     write_artifact(sm.output.protocol, protocol_text(ms).encode(), "marker_set_protocol", prov)
-    err = ms.per_marker.set_index("marker").loc[ms.labels, "expected_error_mm"].to_numpy()
-    fig = plot_marker_set(ms.neutral, ms.labels, ms.selected, err,
-                          title=f"{p.label}: {ms.k} markers to place; the "
-                                f"{len(ms.predicted)} others predicted")
+    fig = plot_design(ms, title=f"{p.label}: {ms.k} markers to place; the "
+                                 f"{len(ms.predicted)} others predicted")
     save_figure(fig, figure_files(sm.output, "png"), "marker_set", prov)
 
 

@@ -13,6 +13,15 @@ from facemotion.plots.facemap import HALO, MAIN_COLOUR, as_neutral, label_index,
 from facemotion.plots.style import set_title
 
 
+def plot_design(ms, title: str = "") -> Figure:
+    """:func:`plot_marker_set` of a marker-set design
+    (:class:`~facemotion.regions.design.MarkerSetDesign`): each predicted marker coloured by
+    its expected held-out error, the head markers when the design has their reference."""
+    err = ms.per_marker.set_index("marker").loc[ms.labels, "expected_error_mm"].to_numpy()
+    return plot_marker_set(ms.neutral, ms.labels, ms.selected, err, ms.head_markers,
+                           ms.head_reference, title=title)
+
+
 def plot_marker_set(neutral, labels: Sequence[str], selected: Sequence[str], error_mm,
                     head: Sequence[str] = (), head_neutral=None, title: str = "") -> Figure:
     """The placed markers (red, numbered in selection order), the predicted ones coloured by

@@ -245,7 +245,7 @@ def write_outputs(ms: MarkerSetDesign, out_dir, stem: str = "marker_set") -> lis
     """Write ``<stem>.json`` (the set, docs/design.md), ``<stem>.tsv`` (one row per marker),
     ``<stem>.png`` (the set on the face) and ``<stem>_protocol.txt``; returns the paths."""
     from facemotion.io.atomic import atomic_path, atomic_write_bytes
-    from facemotion.plots.marker_set import plot_marker_set
+    from facemotion.plots.marker_set import plot_design
     from facemotion.plots.save import figure_bytes
 
     out = Path(out_dir)
@@ -257,9 +257,7 @@ def write_outputs(ms: MarkerSetDesign, out_dir, stem: str = "marker_set") -> lis
         ms.per_marker.to_csv(tmp, sep="\t", index=False, float_format="%.6g",
                              lineterminator="\n")
     if ms.neutral is not None:
-        err = ms.per_marker.set_index("marker").loc[ms.labels, "expected_error_mm"]
-        fig = plot_marker_set(ms.neutral, ms.labels, ms.selected, err.to_numpy(),
-                              ms.head_markers, ms.head_reference)
+        fig = plot_design(ms)
         atomic_write_bytes(paths[2], figure_bytes(fig, "png"))
     else:
         paths.remove(paths[2])
